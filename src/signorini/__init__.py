@@ -1,0 +1,30 @@
+"""signorini: contact mechanics with the Alart-Curnier augmented Lagrangian and
+exact DDM sensitivities (Stupkiewicz).
+
+Importing the package enables JAX float64 (in :mod:`signorini._jax`, the one
+place where JAX is configured); it has no other side effect.
+"""
+
+from . import _jax  # noqa: F401  (float64 before anything else touches JAX)
+from .contact import AugmentedLagrangian, Contact, Penalty, equivalent_areas
+from .errors import (ConvergenceError, InputError, InvertedElementError, SignoriniError,
+                     SingularTangentError, SolverError, UnknownParameterError)
+from .loads import Fixed, Pressure, Traction
+from .materials import LinearElastic, NeoHooke
+from .mesh import Mesh, graded_coordinates, rectangle
+from .newton import NewtonOptions
+from .obstacles import Circle, Line
+from .problem import Problem
+from .sensitivity import finite_difference
+from .solution import Solution
+from .solve import solve
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "AugmentedLagrangian", "Circle", "Contact", "ConvergenceError", "Fixed", "InputError",
+    "InvertedElementError", "LinearElastic", "Line", "Mesh", "NeoHooke", "NewtonOptions",
+    "Penalty", "Pressure", "Problem", "SignoriniError", "SingularTangentError", "Solution",
+    "SolverError", "Traction", "UnknownParameterError", "equivalent_areas", "finite_difference",
+    "graded_coordinates", "rectangle", "solve",
+]

@@ -1,0 +1,52 @@
+"""Sparse assembly: the one place where JAX block arrays become SciPy matrices.
+
+The sparsity pattern is computed once per model from the DOF maps of all
+blocks (elements and contact nodes); every Newton iteration only scatters the
+block values into the fixed CSR data array (``np.bincount`` with a precomputed
+map) and picks the free-free part by a precomputed index.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+
+class SparsityPattern:
+    """Fixed CSR pattern of the free-free tangent.
+
+    Args:
+        block_dofs: list of (n_blocks, k) DOF maps (row/column DOFs of each block).
+        n_dof: total number of DOFs.
+        free: (n_free,) sorted free DOFs (the rows/columns kept).
+    """
+
+    def __init__(self, block_dofs: list[np.ndarray], n_dof: int, free: np.ndarray):
+        loc = -np.ones(n_dof, dtype=np.int64)
+        loc[free] = np.arange(free.size)
+        self.n = int(free.size)
+        rows, cols, keep = [], [], []
+        for d in block_dofs:
+            k = d.shape[1]
+            r = np.repeat(loc[d], k, axis=1).ravel()  # (n_blocks*k*k,) row-major block entries
+            c = np.tile(loc[d], (1, k)).ravel()
+            m = (r >= 0) & (c >= 0)
+            rows.append(r[m])
+            cols.append(c[m])
+            keep.append(m)
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        self._keep = np.concatenate(keep)
+        key = rows * self.n + cols
+        uniq, self._map = np.unique(key, return_inverse=True)
+        self.nnz = int(uniq.size)
+        r, c = np.divmod(uniq, self.n)
+        self.indices = c.astype(np.int32)
+        self.indptr = np.zeros(self.n + 1, dtype=np.int64)
+        np.add.at(self.indptr, r + 1, 1)
+        self.indptr = np.cumsum(self.indptr).astype(np.int32 if self.nnz < 2**31 else np.int64)
+
+    def assemble(self, blocks: list[np.ndarray]) -> sp.csr_matrix:
+        """CSR matrix (n_free, n_free) from block values in the order of ``block_dofs``."""
+        vals = np.concatenate([b.reshape(-1) for b in blocks])[self._keep]
+        data = np.bincount(self._map, weights=vals, minlength=self.nnz)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))

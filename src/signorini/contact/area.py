@@ -1,0 +1,57 @@
+"""Equivalent contact areas A_S of the extended node-to-segment element.
+
+A_S belongs to contact node S and its two neighbours N1, N2 along the boundary
+of the *reference* mesh (paper section 4, THEORY section 5): in plane strain
+(per unit thickness) A_S = (l1 + l2) / 2, and l1 / 2 at an end node. It depends
+on the design parameters through X(phi), never on the displacements.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jax import jnp
+from ..errors import InputError
+
+
+def contact_nodes(edges: np.ndarray) -> np.ndarray:
+    """Sorted unique nodes of an edge set."""
+    return np.unique(edges.ravel())
+
+
+def equivalent_areas(X, edges: np.ndarray, nodes: np.ndarray):
+    """A_S (n_contact,) for the nodes ``nodes`` of the edge set ``edges``.
+
+    Args:
+        X: (n_nodes, 2) reference coordinates (JAX or NumPy, may depend on phi).
+        edges: (n_edges, 2) boundary edges of the contact surface.
+        nodes: (n_contact,) contact nodes (``contact_nodes(edges)``).
+    """
+    L = jnp.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
+    pos = np.searchsorted(nodes, edges)  # local index of each edge end
+    A = jnp.zeros(len(nodes))
+    A = A.at[pos[:, 0]].add(0.5 * L).at[pos[:, 1]].add(0.5 * L)
+    return A
+
+
+def check_edges(edges: np.ndarray, name: str) -> None:
+    """A contact surface must be a simple chain: no node with more than two edges."""
+    if len(edges) == 0:
+        raise InputError(f"contact edge set {name!r} is empty")
+    counts = np.bincount(edges.ravel())
+    if counts.max() > 2:
+        n = int(np.argmax(counts))
+        raise InputError(
+            f"contact edge set {name!r}: node {n} has {counts.max()} edges; a contact "
+            "surface must be a chain of boundary edges"
+        )
+
+
+def nodal_normals(X, edges: np.ndarray, nodes: np.ndarray):
+    """Reference outward unit normals (n_contact, 2) of the body at the contact
+    nodes: normalised sum of the adjacent edge normals (dy, -dx)."""
+    d = X[edges[:, 1]] - X[edges[:, 0]]
+    n = jnp.stack([d[:, 1], -d[:, 0]], axis=1)
+    pos = np.searchsorted(nodes, edges)
+    N = jnp.zeros((len(nodes), 2)).at[pos[:, 0]].add(n).at[pos[:, 1]].add(n)
+    return N / jnp.linalg.norm(N, axis=1, keepdims=True)

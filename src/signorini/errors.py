@@ -1,0 +1,48 @@
+"""Exceptions raised by signorini.
+
+Every error names the problem and what to do about it. They all derive from
+:class:`SignoriniError` (itself a ``ValueError`` or ``RuntimeError`` where that
+is the natural category) so callers can catch one type.
+"""
+
+from __future__ import annotations
+
+
+class SignoriniError(Exception):
+    """Base class of all errors raised by signorini."""
+
+
+class InputError(SignoriniError, ValueError):
+    """Inconsistent or invalid input (mesh, sets, parameters, options)."""
+
+
+class InvertedElementError(InputError):
+    """An element has a non-positive Jacobian in the reference configuration."""
+
+
+class UnknownParameterError(InputError, KeyError):
+    """A parameter name is not defined by the problem."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class SolverError(SignoriniError, RuntimeError):
+    """The nonlinear or linear solver failed."""
+
+
+class SingularTangentError(SolverError):
+    """The tangent matrix could not be factorised."""
+
+
+class ConvergenceError(SolverError):
+    """Newton did not converge, even after cutting the load step.
+
+    Attributes:
+        partial: the :class:`~signorini.solution.Solution` holding every
+            increment converged before the failure (may have no increments).
+    """
+
+    def __init__(self, message: str, partial=None):
+        super().__init__(message)
+        self.partial = partial

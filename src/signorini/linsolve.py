@@ -1,0 +1,102 @@
+"""Direct linear solvers behind one small interface.
+
+``factorize(K)`` returns an object with ``solve(b)`` (b of shape (n,) or
+(n, k)); the same factorisation serves Newton and all DDM right-hand sides.
+Matrices may be unsymmetric (friction). SciPy's SuperLU is the embedded
+default; UMFPACK (``scikit-umfpack``) and PARDISO (``pypardiso``) are used
+when installed and asked for.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .errors import InputError, SingularTangentError
+
+
+class _Factor:
+    def __init__(self, solve, n):
+        self._solve = solve
+        self.n = n
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        x = self._solve(b)
+        if not np.all(np.isfinite(x)):
+            raise SingularTangentError("the linear solve returned non-finite values (singular tangent)")
+        return x
+
+
+class SuperLU:
+    """SciPy's SuperLU with COLAMD ordering (the default)."""
+
+    name = "superlu"
+
+    def __init__(self, permc_spec: str = "COLAMD"):
+        self.permc_spec = permc_spec
+
+    def factorize(self, K: sp.spmatrix) -> _Factor:
+        try:
+            lu = spla.splu(K.tocsc(), permc_spec=self.permc_spec)
+        except RuntimeError as e:  # "Factor is exactly singular"
+            raise SingularTangentError(f"SuperLU could not factorise the tangent: {e}") from None
+        return _Factor(lu.solve, K.shape[0])
+
+
+class Umfpack:
+    """UMFPACK through scikit-umfpack (optional)."""
+
+    name = "umfpack"
+
+    def __init__(self):
+        try:
+            import scikits.umfpack  # noqa: F401
+        except ImportError:
+            raise InputError("solver 'umfpack' needs `pip install scikit-umfpack`") from None
+
+    def factorize(self, K):
+        import scikits.umfpack as um
+
+        try:
+            lu = um.splu(K.tocsc())
+        except Exception as e:  # noqa: BLE001 - umfpack raises generic errors
+            raise SingularTangentError(f"UMFPACK could not factorise the tangent: {e}") from None
+        return _Factor(lambda b: np.column_stack([lu.solve(c) for c in b.T]) if b.ndim == 2
+                       else lu.solve(b), K.shape[0])
+
+
+class Pardiso:
+    """Intel MKL PARDISO through pypardiso (optional)."""
+
+    name = "pardiso"
+
+    def __init__(self):
+        try:
+            import pypardiso  # noqa: F401
+        except ImportError:
+            raise InputError("solver 'pardiso' needs `pip install pypardiso`") from None
+
+    def factorize(self, K):
+        import pypardiso
+
+        solver = pypardiso.PyPardisoSolver()
+        A = K.tocsr()
+        try:
+            solver.factorize(A)
+        except Exception as e:  # noqa: BLE001
+            raise SingularTangentError(f"PARDISO could not factorise the tangent: {e}") from None
+        return _Factor(lambda b: solver.solve(A, np.asarray(b)), K.shape[0])
+
+
+SOLVERS = {"superlu": SuperLU, "umfpack": Umfpack, "pardiso": Pardiso}
+
+
+def get_solver(name_or_solver="superlu"):
+    """A solver instance from its name (``superlu``, ``umfpack``, ``pardiso``)."""
+    if not isinstance(name_or_solver, str):
+        return name_or_solver
+    try:
+        return SOLVERS[name_or_solver]()
+    except KeyError:
+        raise InputError(f"unknown linear solver {name_or_solver!r}; choose from {sorted(SOLVERS)}") from None

@@ -1,0 +1,86 @@
+"""Prescribed displacements and boundary loads (dead loads, proportional stepping).
+
+Every value is a parameter spec (see :mod:`signorini.params`) multiplied by a
+``ramp(t)`` of the load factor t in [0, 1] (default: ``t``, proportional loading).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._jax import jnp
+from .params import Spec, resolve
+
+
+def _linear(t):
+    return t
+
+
+@dataclass(frozen=True)
+class Fixed:
+    """Prescribed displacement ``value * ramp(t)`` of component ``component``
+    (0 = x / r, 1 = y / z) on the nodes of ``node_set``."""
+
+    node_set: str
+    component: int
+    value: Spec = 0.0
+    ramp: Callable = _linear
+
+    def specs(self):
+        return (self.value,)
+
+
+@dataclass(frozen=True)
+class Pressure:
+    """Uniform nominal pressure on an edge set (dead load, reference normal).
+
+    Positive pressure pushes into the body. With ``resultant=True`` the value is
+    the resultant force (per unit thickness) and the pressure is value / length
+    of the edge set in the reference configuration.
+    """
+
+    edges: str
+    value: Spec
+    resultant: bool = False
+    ramp: Callable = _linear
+
+    def specs(self):
+        return (self.value,)
+
+    def nodal_forces(self, X, edges: np.ndarray, params, t):
+        """(n_edges, 2 ends, 2) consistent nodal forces of the load at t."""
+        d = X[edges[:, 1]] - X[edges[:, 0]]
+        q = resolve(self.value, params) * self.ramp(t)
+        if self.resultant:
+            q = q / jnp.sum(jnp.linalg.norm(d, axis=1))
+        # traction -q n, n = (dy, -dx)/L, so the force per end is -q (dy, -dx) / 2
+        f = -0.5 * q * jnp.stack([d[:, 1], -d[:, 0]], axis=1)
+        return jnp.stack([f, f], axis=1)
+
+
+@dataclass(frozen=True)
+class Traction:
+    """Uniform nominal traction vector on an edge set (dead load).
+
+    With ``resultant=True`` the value is the resultant force vector.
+    """
+
+    edges: str
+    value: tuple[Spec, Spec]
+    resultant: bool = False
+    ramp: Callable = _linear
+
+    def specs(self):
+        return tuple(self.value)
+
+    def nodal_forces(self, X, edges: np.ndarray, params, t):
+        d = X[edges[:, 1]] - X[edges[:, 0]]
+        L = jnp.linalg.norm(d, axis=1)
+        tr = jnp.stack([jnp.asarray(resolve(v, params), dtype=float) for v in self.value]) * self.ramp(t)
+        if self.resultant:
+            tr = tr / jnp.sum(L)
+        f = 0.5 * L[:, None] * tr[None, :]
+        return jnp.stack([f, f], axis=1)

@@ -1,0 +1,183 @@
+"""Meshes of 4-node quadrilaterals with named node and boundary-edge sets.
+
+Conventions: ``nodes`` (n_nodes, 2) reference coordinates; ``cells`` (n_cells, 4)
+node indices counter-clockwise; an edge set is (n_edges, 2) node pairs ordered
+so that the body lies on the left when walking from the first node to the
+second (the orientation of the cell that owns the edge). Then the outward
+normal of edge (a, b) is ``(dy, -dx) / L``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError, InvertedElementError
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """A 2-D mesh of Q4 cells.
+
+    Attributes:
+        nodes: (n_nodes, 2) reference coordinates.
+        cells: (n_cells, 4) node indices, counter-clockwise.
+        node_sets: name -> sorted node indices.
+        edge_sets: name -> (n_edges, 2) boundary edges (body on the left).
+    """
+
+    nodes: np.ndarray
+    cells: np.ndarray
+    node_sets: Mapping[str, np.ndarray] = field(default_factory=dict)
+    edge_sets: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self):
+        nodes = np.ascontiguousarray(self.nodes, dtype=float)
+        cells = np.ascontiguousarray(self.cells, dtype=np.int64)
+        if nodes.ndim != 2 or nodes.shape[1] != 2:
+            raise InputError(f"nodes must have shape (n_nodes, 2), got {nodes.shape}")
+        if cells.ndim != 2 or cells.shape[1] != 4:
+            raise InputError(f"cells must have shape (n_cells, 4) (Q4), got {cells.shape}")
+        if cells.size and (cells.min() < 0 or cells.max() >= len(nodes)):
+            raise InputError("cells refer to node indices outside 0..n_nodes-1")
+        object.__setattr__(self, "nodes", nodes)
+        object.__setattr__(self, "cells", cells)
+        ns = {k: np.unique(np.asarray(v, dtype=np.int64)) for k, v in self.node_sets.items()}
+        for k, v in ns.items():
+            if v.size and (v.min() < 0 or v.max() >= len(nodes)):
+                raise InputError(f"node set {k!r} refers to nodes outside 0..{len(nodes)-1}")
+        object.__setattr__(self, "node_sets", ns)
+        es = {k: np.asarray(v, dtype=np.int64).reshape(-1, 2) for k, v in self.edge_sets.items()}
+        object.__setattr__(self, "edge_sets", es)
+        check_orientation(nodes, cells)
+        boundary = {tuple(e) for e in self.boundary_edges()}
+        for k, edges in es.items():
+            for a, b in edges:
+                if (a, b) not in boundary:
+                    if (b, a) in boundary:
+                        raise InputError(
+                            f"edge set {k!r}: edge ({a}, {b}) is reversed; order boundary "
+                            "edges so that the body lies on the left (counter-clockwise)"
+                        )
+                    raise InputError(
+                        f"edge set {k!r}: edge ({a}, {b}) is not on the boundary of the "
+                        "mesh; loads and contact need boundary edges"
+                    )
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.cells)
+
+    def boundary_edges(self) -> np.ndarray:
+        """(n, 2) edges that belong to exactly one cell, in that cell's orientation."""
+        e = np.stack([self.cells, np.roll(self.cells, -1, axis=1)], axis=-1).reshape(-1, 2)
+        key = np.sort(e, axis=1)
+        _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        return e[counts[inv.ravel()] == 1]
+
+    def node_set(self, name: str) -> np.ndarray:
+        try:
+            return self.node_sets[name]
+        except KeyError:
+            raise InputError(f"unknown node set {name!r}; mesh has {sorted(self.node_sets)}") from None
+
+    def edge_set(self, name: str) -> np.ndarray:
+        try:
+            return self.edge_sets[name]
+        except KeyError:
+            raise InputError(f"unknown edge set {name!r}; mesh has {sorted(self.edge_sets)}") from None
+
+    def min_edge_length(self, name: str) -> float:
+        e = self.edge_set(name)
+        return float(np.linalg.norm(self.nodes[e[:, 1]] - self.nodes[e[:, 0]], axis=1).min())
+
+
+def signed_jacobians(nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """det(dX/dxi) at the 4 corners of every cell, (n_cells, 4).
+
+    For a bilinear quad the Jacobian is positive everywhere inside iff it is
+    positive at the four corners.
+    """
+    x = nodes[cells]  # (n_cells, 4, 2)
+    nxt = np.roll(x, -1, axis=1) - x
+    prv = np.roll(x, 1, axis=1) - x
+    return nxt[..., 0] * prv[..., 1] - nxt[..., 1] * prv[..., 0]
+
+
+def check_orientation(nodes: np.ndarray, cells: np.ndarray, what: str = "mesh") -> None:
+    """Raise :class:`InvertedElementError` for cells with non-positive Jacobian."""
+    if not len(cells):
+        return
+    det = signed_jacobians(nodes, cells)
+    bad = np.nonzero(det.min(axis=1) <= 0.0)[0]
+    if bad.size:
+        c = int(bad[0])
+        raise InvertedElementError(
+            f"{what}: {bad.size} inverted or degenerate element(s), first is cell {c} with "
+            f"nodes {cells[c].tolist()} at {nodes[cells[c]].round(6).tolist()} "
+            f"(corner Jacobians {det[c].round(8).tolist()}). Cells must be convex and "
+            "numbered counter-clockwise; check the node order or the shape parameters."
+        )
+
+
+def graded_coordinates(length: float, fine_length: float, n_fine: int, growth: float) -> np.ndarray:
+    """1-D grid on [0, length]: n_fine uniform cells on [0, fine_length], then
+    cells growing geometrically by ``growth`` up to ``length``.
+
+    The graded part is scaled so it ends exactly at ``length``.
+    """
+    if not (0 < fine_length <= length) or n_fine < 1 or growth < 1.0:
+        raise InputError(
+            f"grading needs 0 < fine_length <= length, n_fine >= 1, growth >= 1 "
+            f"(got length={length}, fine_length={fine_length}, n_fine={n_fine}, growth={growth})"
+        )
+    fine = np.linspace(0.0, fine_length, n_fine + 1)
+    rest = length - fine_length
+    if rest <= 1e-14 * length:
+        return fine
+    h = fine_length / n_fine
+    sizes = []
+    while sum(sizes) < rest:
+        h = h * growth
+        sizes.append(h)
+    if len(sizes) > 1 and sum(sizes) - rest > 0.5 * sizes[-1]:
+        sizes.pop()
+    sizes = np.asarray(sizes) * rest / sum(sizes)
+    return np.concatenate([fine, fine_length + np.cumsum(sizes)])
+
+
+def rectangle(xs, ys) -> Mesh:
+    """Structured Q4 mesh on the tensor grid ``xs`` x ``ys`` (both increasing).
+
+    Node sets: ``left``, ``right``, ``bottom``, ``top`` and ``all``; edge sets with
+    the same side names (counter-clockwise).
+    """
+    xs = np.asarray(xs, dtype=float)
+    ys = np.asarray(ys, dtype=float)
+    if xs.ndim != 1 or ys.ndim != 1 or len(xs) < 2 or len(ys) < 2:
+        raise InputError("rectangle needs at least two x and two y coordinates")
+    if np.any(np.diff(xs) <= 0) or np.any(np.diff(ys) <= 0):
+        raise InputError("rectangle coordinates must be strictly increasing")
+    nx, ny = len(xs), len(ys)
+    X, Y = np.meshgrid(xs, ys, indexing="xy")  # (ny, nx)
+    nodes = np.column_stack([X.ravel(), Y.ravel()])
+    idx = np.arange(nx * ny).reshape(ny, nx)
+    cells = np.column_stack(
+        [idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()]
+    )
+    bottom, top, left, right = idx[0, :], idx[-1, :], idx[:, 0], idx[:, -1]
+    edge_sets = {
+        "bottom": np.column_stack([bottom[:-1], bottom[1:]]),
+        "right": np.column_stack([right[:-1], right[1:]]),
+        "top": np.column_stack([top[1:], top[:-1]])[::-1],
+        "left": np.column_stack([left[1:], left[:-1]])[::-1],
+    }
+    node_sets = {"bottom": bottom, "top": top, "left": left, "right": right,
+                 "all": np.arange(nx * ny)}
+    return Mesh(nodes, cells, node_sets, edge_sets)

@@ -1,0 +1,278 @@
+"""A :class:`Problem` compiled into JAX kernels and a DOF layout.
+
+Unknowns ``w`` (n_dof,) = [U (2 n_nodes, node-major), Lambda (multipliers of
+each contact surface, node-major)]. Prescribed displacement DOFs are part of
+``w`` (their values are set, not solved for); the rest are *free*.
+
+One pure function is the source of truth::
+
+    R = residual(w, params, t, state_n)      # state_n = (w_n, history_n)
+
+It is built from the per-element kernel (gradient of the element energy) and
+the per-contact-node kernel (gradient of the contact pseudo-potential), both
+``vmap``-ed. Newton gets the same kernels' Jacobians block by block
+(:meth:`Model.local_tangents`, assembled sparsely), the DDM pseudo-load is a
+JVP of ``residual`` in (params, w_p, state_n) (:mod:`signorini.sensitivity`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import element
+from ._jax import jax, jnp
+from .contact.area import check_edges, contact_nodes, equivalent_areas, nodal_normals
+from .errors import InputError
+from .mesh import check_orientation
+from .obstacles import Linearized
+from .params import as_jax, check_names, names_in, resolve
+from .problem import Problem
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Static data of one contact surface."""
+
+    contact: object  # Contact
+    edges: np.ndarray  # (n_edges, 2)
+    nodes: np.ndarray  # (nc,) mesh node indices
+    lam_offset: int  # first multiplier DOF
+    n_mult: int
+    dofs: np.ndarray  # (nc, 2 + n_mult) DOFs of each contact element
+
+    @property
+    def lam_dofs(self) -> np.ndarray:
+        return self.dofs[:, 2:]
+
+
+class Model:
+    """Kernels, DOF layout and sparsity of a :class:`Problem`."""
+
+    def __init__(self, problem: Problem):
+        self.problem = p = problem
+        mesh = p.mesh
+        self.n_nodes = mesh.n_nodes
+        self.conn = mesh.cells
+        self.edofs = np.stack([2 * self.conn, 2 * self.conn + 1], axis=-1).reshape(-1, 8)
+        self._check_names()
+
+        # contact surfaces and multiplier DOFs
+        off = 2 * self.n_nodes
+        surfaces = []
+        for c in p.contact:
+            edges = mesh.edge_set(c.edges)
+            check_edges(edges, c.edges)
+            nodes = contact_nodes(edges)
+            m = c.method.n_multipliers
+            lam = off + np.arange(len(nodes) * m).reshape(len(nodes), m)
+            dofs = np.concatenate([2 * nodes[:, None], 2 * nodes[:, None] + 1, lam], axis=1)
+            surfaces.append(Surface(c, edges, nodes, off, m, dofs))
+            off += len(nodes) * m
+        self.surfaces = tuple(surfaces)
+        self.n_dof = off
+
+        # prescribed DOFs
+        pres, seen = [], {}
+        for f in p.fixed:
+            if f.component not in (0, 1):
+                raise InputError(f"Fixed({f.node_set!r}): component must be 0 or 1, got {f.component}")
+            for n in mesh.node_set(f.node_set):
+                d = 2 * int(n) + f.component
+                if d in seen:
+                    raise InputError(
+                        f"inconsistent boundary sets: DOF {f.component} of node {n} is prescribed "
+                        f"by both {seen[d]!r} and {f.node_set!r}; prescribe each DOF once"
+                    )
+                seen[d] = f.node_set
+                pres.append((d, f))
+        self.prescribed = np.array([d for d, _ in pres], dtype=np.int64)
+        self._pres_fixed = [f for _, f in pres]
+        mask = np.ones(self.n_dof, bool)
+        mask[self.prescribed] = False
+        self.free = np.nonzero(mask)[0]
+        for s in self.surfaces:
+            both = np.isin(2 * s.nodes, self.prescribed) & np.isin(2 * s.nodes + 1, self.prescribed)
+            if both.any():
+                n = int(s.nodes[np.argmax(both)])
+                raise InputError(
+                    f"inconsistent boundary sets: contact node {n} of {s.contact.edges!r} has both "
+                    "displacement components prescribed, so contact there is meaningless; remove it "
+                    "from the contact set or free one component"
+                )
+        self.load_edges = [mesh.edge_set(l.edges) for l in p.loads]
+        finite = getattr(p.material, "finite_strain", True)
+        self.linear_contact = [
+            c.kinematics == "linear" or (c.kinematics == "auto" and not finite) for c in p.contact]
+
+        # weights of the convergence norm: multiplier rows scaled to force units
+        self._shape_names = list(p.shape)
+        self._V = {k: jnp.asarray(v) for k, v in p.shape.items()}
+        self._X0 = jnp.asarray(mesh.nodes)
+
+        self._local = jax.jit(self._local_impl)
+        self._residual = jax.jit(self.residual)
+
+    # ------------------------------------------------------------------ setup
+    def _check_names(self):
+        p = self.problem
+        specs = list(p.material.specs())
+        for f in p.fixed:
+            specs += f.specs()
+        for l in p.loads:
+            specs += l.specs()
+        for c in p.contact:
+            specs += c.specs()
+        check_names(names_in(specs), p.params, "the problem definition")
+
+    def check(self, params: dict) -> None:
+        """Validate parameter values (positive modulus, radius, eps; no inverted element)."""
+        p = self.problem
+        p.material.check(params)
+        for c in p.contact:
+            c.obstacle.check(params)
+            c.method.check(params)
+        if self._shape_names:
+            X = np.asarray(self.reference(as_jax(params)))
+            check_orientation(X, self.conn, "reference mesh at the given shape parameters")
+
+    # ----------------------------------------------------------- pure kernels
+    def reference(self, params):
+        """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities."""
+        X = self._X0
+        for k in self._shape_names:
+            X = X + (params[k] - self.problem.shape_nominal[k]) * self._V[k]
+        return X
+
+    def split(self, w):
+        """w -> (u (n_nodes, 2), [lam_s (nc_s, m_s) per surface])."""
+        u = w[: 2 * self.n_nodes].reshape(-1, 2)
+        lams = [w[s.lam_offset : s.lam_offset + s.nodes.size * s.n_mult].reshape(-1, s.n_mult)
+                for s in self.surfaces]
+        return u, lams
+
+    def external_forces(self, X, params, t):
+        """(n_dof,) consistent nodal forces of all loads at load factor t."""
+        f = jnp.zeros(self.n_dof)
+        for load, edges in zip(self.problem.loads, self.load_edges):
+            fe = load.nodal_forces(X, edges, params, t)  # (n_edges, 2, 2)
+            d = np.stack([2 * edges, 2 * edges + 1], axis=-1)
+            f = f.at[d.ravel()].add(fe.ravel())
+        return f
+
+    def prescribed_values(self, params, t):
+        """(n_prescribed,) prescribed displacement values at t."""
+        if not len(self._pres_fixed):
+            return jnp.zeros(0)
+        return jnp.stack([jnp.asarray(resolve(f.value, params), dtype=float) * f.ramp(t)
+                          for f in self._pres_fixed])
+
+    def _contact_inputs(self, s: Surface, X, u, lam, params, t):
+        c = s.contact
+        A = equivalent_areas(X, s.edges, s.nodes)
+        x = X[s.nodes] + u[s.nodes]
+        geo = c.obstacle.geometry(params, t)
+        cp = c.method.values(params)
+        return x, lam, A, geo, cp, (X[s.nodes], nodal_normals(X, s.edges, s.nodes))
+
+    def _obstacle_at(self, s: Surface, Xs):
+        """The obstacle as seen by one contact node (linearised kinematics if asked)."""
+        if self.linear_contact[self.surfaces.index(s)]:
+            return Linearized(s.contact.obstacle, *Xs)
+        return s.contact.obstacle
+
+    def residual(self, w, params, t, state_n=None):
+        """Global residual R (n_dof,) = internal + contact - external forces;
+        multiplier rows hold the contact-law equations (paper eqs. 19-20)."""
+        p = self.problem
+        X = self.reference(params)
+        u, lams = self.split(w)
+        mp = p.material.values(params)
+        re = jax.vmap(lambda ue, Xe: element.element_residual(ue, Xe, p.material, mp))(
+            u[self.conn], X[self.conn])
+        R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
+        R = R - self.external_forces(X, params, t)
+        hist = state_n[1] if state_n is not None else None
+        for i, s in enumerate(self.surfaces):
+            x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
+            h = None if hist is None else hist[i]
+            method = s.contact.method
+            rc = jax.vmap(lambda xs, ls, a, hs, X0: method.residual(
+                xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs),
+                (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
+            R = R.at[s.dofs.ravel()].add(rc.ravel())
+        return R
+
+    def _local_impl(self, w, params, t, state_n=None):
+        """Residual and the Jacobian blocks of every element and contact node."""
+        p = self.problem
+        X = self.reference(params)
+        u, lams = self.split(w)
+        mp = p.material.values(params)
+
+        def el(ue, Xe):
+            r = lambda v: element.element_residual(v.reshape(4, 2), Xe, p.material, mp).ravel()
+            return jax.jacfwd(lambda v: (r(v), r(v)), has_aux=True)(ue.ravel())
+
+        Ke, re = jax.vmap(el)(u[self.conn], X[self.conn])
+        R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
+        R = R - self.external_forces(X, params, t)
+        blocks = [Ke]
+        hist = state_n[1] if state_n is not None else None
+        for i, s in enumerate(self.surfaces):
+            x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
+            h = None if hist is None else hist[i]
+            method = s.contact.method
+
+            def node(xs, ls, a, hs, X0, s=s, method=method, geo=geo, cp=cp):
+                obstacle = self._obstacle_at(s, X0)
+
+                def r(v):
+                    out = method.residual(v[:2], v[2:], a, geo, obstacle, cp, hs)
+                    return out, out
+                return jax.jacfwd(r, has_aux=True)(jnp.concatenate([xs, ls]))
+
+            Kc, rc = jax.vmap(node, (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
+            R = R.at[s.dofs.ravel()].add(rc.ravel())
+            blocks.append(Kc)
+        return R, blocks
+
+    def local_tangents(self, w, params, t, state_n=None):
+        """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
+        R, blocks = self._local(w, params, t, state_n)
+        return np.asarray(R), [np.asarray(b) for b in blocks]
+
+    def block_dofs(self) -> list[np.ndarray]:
+        """DOF maps matching the blocks of :meth:`local_tangents`."""
+        return [self.edofs] + [s.dofs for s in self.surfaces]
+
+    def convergence_weights(self, params) -> np.ndarray:
+        """(n_dof,) row weights giving every residual row force units."""
+        wts = np.ones(self.n_dof)
+        for s in self.surfaces:
+            cp = s.contact.method.values(params)
+            wts[s.lam_dofs.ravel()] = float(s.contact.method.row_scale(cp))
+        return wts
+
+    # ------------------------------------------------------------ post-process
+    def contact_fields(self, w, params, t, surface: int = 0):
+        """Pure function: per-node gap g, p_N, p_T of a surface (each (nc,))."""
+        s = self.surfaces[surface]
+        X = self.reference(params)
+        u, lams = self.split(w)
+        x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[surface], params, t)
+        meth = s.contact.method
+        g = jax.vmap(lambda xs, X0: self._obstacle_at(s, X0).gap(xs, geo))(x, Xs)
+        pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
+            xs, ls, a, geo, self._obstacle_at(s, X0), cp))(x, lam, A, Xs)
+        return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
+
+    def stresses(self, w, params):
+        """Pure function: element-averaged Cauchy stress (n_cells, 3, 3)."""
+        p = self.problem
+        X = self.reference(params)
+        u, _ = self.split(w)
+        mp = p.material.values(params)
+        return jax.vmap(lambda ue, Xe: element.element_stress(ue, Xe, p.material, mp))(
+            u[self.conn], X[self.conn])

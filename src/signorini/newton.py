@@ -1,0 +1,137 @@
+"""Newton's method for one load increment (paper eq. 2 / 21).
+
+Displacements and contact multipliers are updated together from
+K dw = -R, with K the exact Jacobian of the residual (assembled from the
+JAX block Jacobians). The iteration log records the residual norm of every
+iterate so quadratic convergence can be seen and tested.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError, SingularTangentError
+
+log = logging.getLogger("signorini")
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Tolerances and limits of the Newton solver and load stepping.
+
+    Attributes:
+        rtol: converged when ||R|| <= rtol * ref, ref = max(||R_0||, ||f_ext||)
+            (multiplier rows weighted to force units).
+        atol: absolute floor of the same test.
+        max_iter: iterations per increment before the increment is cut.
+        max_cuts: how many times an increment may be halved.
+        divergence: ||R|| > divergence * ref stops the increment early.
+        singular_check: relative linear residual above which a solve is taken
+            as singular.
+    """
+
+    rtol: float = 1e-10
+    atol: float = 0.0
+    max_iter: int = 25
+    max_cuts: int = 8
+    divergence: float = 1e12
+    singular_check: float = 1e-6
+
+    def __post_init__(self):
+        if not (self.rtol > 0 or self.atol > 0):
+            raise InputError("NewtonOptions: rtol or atol must be positive")
+        if self.max_iter < 1 or self.max_cuts < 0:
+            raise InputError("NewtonOptions: max_iter >= 1 and max_cuts >= 0 are required")
+
+
+@dataclass
+class StepLog:
+    """What Newton did in one (attempted) increment."""
+
+    t: float
+    dt: float
+    residuals: list[float] = field(default_factory=list)
+    converged: bool = False
+    reason: str = ""
+    time_assembly: float = 0.0
+    time_factorization: float = 0.0
+    time_solve: float = 0.0
+
+    @property
+    def iterations(self) -> int:
+        """Number of linear solves (iterates after the first)."""
+        return max(len(self.residuals) - 1, 0)
+
+    def summary(self) -> str:
+        res = " ".join(f"{r:.1e}" for r in self.residuals)
+        state = "converged" if self.converged else f"FAILED ({self.reason})"
+        return f"t={self.t:.6g} dt={self.dt:.3g}: {state} in {self.iterations} it, |R|: {res}"
+
+
+class StepFailure(Exception):
+    """An increment failed; ``fatal`` means cutting the step cannot help."""
+
+    def __init__(self, reason: str, fatal: bool = False):
+        super().__init__(reason)
+        self.reason = reason
+        self.fatal = fatal
+
+
+def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions,
+           weights: np.ndarray, ref_floor: float, steplog: StepLog):
+    """Iterate to convergence from ``w`` (modified in place on the free DOFs).
+
+    Returns:
+        (w, R, blocks): converged unknowns, residual and block Jacobians at w
+        (so the caller can factorise the exact converged tangent for DDM).
+
+    Raises:
+        StepFailure: no convergence, divergence, non-finite residual or singular tangent.
+    """
+    free = model.free
+    ref = None
+    for k in range(options.max_iter + 1):
+        t0 = time.perf_counter()
+        R, blocks = model.local_tangents(w, params, t, state_n)
+        steplog.time_assembly += time.perf_counter() - t0
+        Rf = R[free]
+        if not np.all(np.isfinite(Rf)):
+            raise StepFailure(
+                "non-finite residual: an element is inverted (J <= 0) or a contact node reached "
+                "the centre of the obstacle; a smaller load increment may help")
+        norm = float(np.linalg.norm(Rf * weights[free]))
+        if ref is None:
+            ref = max(norm, ref_floor)
+        steplog.residuals.append(norm)
+        log.debug("  t=%.6g it %d |R|=%.3e", t, k, norm)
+        if norm <= max(options.rtol * ref, options.atol):
+            steplog.converged = True
+            return w, R, blocks
+        if k == options.max_iter:
+            raise StepFailure(f"no convergence in {options.max_iter} iterations")
+        if norm > options.divergence * ref:
+            raise StepFailure("residual diverging")
+        t0 = time.perf_counter()
+        K = pattern.assemble(blocks)
+        steplog.time_assembly += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        try:
+            fac = solver.factorize(K)
+        except SingularTangentError as e:
+            raise StepFailure(str(e), fatal=(k == 0)) from None
+        steplog.time_factorization += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        try:
+            dw = fac.solve(-Rf)
+        except SingularTangentError as e:
+            raise StepFailure(str(e), fatal=(k == 0)) from None
+        lin = np.linalg.norm(K @ dw + Rf) / max(np.linalg.norm(Rf), 1e-300)
+        steplog.time_solve += time.perf_counter() - t0
+        if lin > options.singular_check:
+            raise StepFailure(f"singular tangent (linear residual {lin:.1e})", fatal=(k == 0))
+        w[free] += dw
+    raise AssertionError("unreachable")

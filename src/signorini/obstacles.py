@@ -1,0 +1,141 @@
+"""Rigid obstacles: gap, outward normal, projection and slip coordinate.
+
+All functions are pure JAX functions of the point ``x`` (2,) and the resolved
+geometry ``geo = obstacle.geometry(params, t)``, so they can be differentiated
+with respect to the position and to the obstacle's own parameters (radius,
+centre, ...). Normal ``n'`` points from the obstacle into the body; ``g >= 0``
+means separated. See THEORY.md section 6.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ._jax import jax, jnp
+from .errors import InputError
+from .params import Spec, resolve
+
+
+def _point(spec, params):
+    return jnp.stack([jnp.asarray(resolve(s, params), dtype=float) for s in spec])
+
+
+@dataclass(frozen=True)
+class Circle:
+    """Rigid cylinder of radius ``radius`` and centre ``centre``; the body lies outside.
+
+    The centre moves as ``centre + t * motion`` (t = load factor).
+    The slip coordinate is s = radius * theta with theta measured from the
+    downward vertical (branch cut at the top of the cylinder).
+    """
+
+    radius: Spec = "R"
+    centre: tuple[Spec, Spec] = (0.0, "R")
+    motion: tuple[Spec, Spec] = (0.0, 0.0)
+
+    def specs(self):
+        return (self.radius, *self.centre, *self.motion)
+
+    def geometry(self, params, t):
+        c = _point(self.centre, params) + t * _point(self.motion, params)
+        return {"R": jnp.asarray(resolve(self.radius, params), dtype=float), "c": c}
+
+    def check(self, params):
+        r = float(resolve(self.radius, params))
+        if not r > 0:
+            raise InputError(f"the cylinder radius must be positive, got {r}")
+
+    @staticmethod
+    def gap(x, geo):
+        d = x - geo["c"]
+        return jnp.sqrt(d @ d) - geo["R"]
+
+    @staticmethod
+    def normal(x, geo):
+        d = x - geo["c"]
+        return d / jnp.sqrt(d @ d)
+
+    @classmethod
+    def project(cls, x, geo):
+        return geo["c"] + geo["R"] * cls.normal(x, geo)
+
+    @staticmethod
+    def coordinate(x, geo):
+        d = x - geo["c"]
+        return geo["R"] * jnp.arctan2(d[0], -d[1])
+
+
+@dataclass(frozen=True)
+class Line:
+    """Rigid straight die through ``point`` (moving as ``point + t * motion``),
+    with unit normal ``normal`` pointing into the body (normalised on use).
+    The slip coordinate is the distance along the tangent t' = (-n2, n1)."""
+
+    point: tuple[Spec, Spec] = (0.0, 0.0)
+    normal_vector: tuple[Spec, Spec] = (0.0, -1.0)
+    motion: tuple[Spec, Spec] = (0.0, 0.0)
+
+    def specs(self):
+        return (*self.point, *self.normal_vector, *self.motion)
+
+    def geometry(self, params, t):
+        n = _point(self.normal_vector, params)
+        n = n / jnp.sqrt(n @ n)
+        return {"x0": _point(self.point, params) + t * _point(self.motion, params), "n": n}
+
+    def check(self, params):
+        n = _point(self.normal_vector, params)
+        if not float(jnp.sqrt(n @ n)) > 0:
+            raise InputError("the die normal must be a non-zero vector")
+
+    @staticmethod
+    def gap(x, geo):
+        return (x - geo["x0"]) @ geo["n"]
+
+    @staticmethod
+    def normal(x, geo):
+        return geo["n"]
+
+    @classmethod
+    def project(cls, x, geo):
+        return x - cls.gap(x, geo) * geo["n"]
+
+    @staticmethod
+    def coordinate(x, geo):
+        n = geo["n"]
+        return (x - geo["x0"]) @ jnp.array([-n[1], n[0]])
+
+
+class Linearized:
+    """An obstacle seen with geometrically linear contact kinematics.
+
+    This is the classical Signorini linearisation of small-strain analyses
+    (the assumption of the analytical Hertz solution): the displacement of a
+    contact node enters the gap only through its component along the body's
+    reference outward normal N, and the slip coordinate only through its
+    component along the body's tangent T = (-N2, N1)::
+
+        g(x) = g(X) + grad g(X) . N (N . u),   s(x) = s(X) + grad s(X) . T (T . u),   u = x - X.
+    """
+
+    def __init__(self, base, X, N):
+        self.base = base
+        self.X = X
+        self.N = N
+        self.T = jnp.array([-N[1], N[0]])
+
+    def _lin(self, f, x, geo, d):
+        val, dv = jax.jvp(lambda y: f(y, geo), (self.X,), (d * (d @ (x - self.X)),))
+        return val + dv
+
+    def gap(self, x, geo):
+        return self._lin(self.base.gap, x, geo, self.N)
+
+    def coordinate(self, x, geo):
+        return self._lin(self.base.coordinate, x, geo, self.T)
+
+    def normal(self, x, geo):
+        return self.base.normal(self.X, geo)
+
+    def project(self, x, geo):
+        return self.base.project(self.X, geo)

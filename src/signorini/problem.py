@@ -1,0 +1,76 @@
+"""The definition of a boundary-value problem with contact.
+
+A :class:`Problem` is an immutable description: mesh, material, parameter
+values, boundary conditions, loads, contact surfaces and shape design
+velocities. :func:`signorini.solve` turns it into a :class:`~signorini.model.Model`
+(kernels, DOF layout, sparsity) and solves it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError, UnknownParameterError
+from .mesh import Mesh
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A contact problem.
+
+    Attributes:
+        mesh: the reference mesh (at the nominal parameter values).
+        material: e.g. :class:`~signorini.materials.LinearElastic`.
+        params: name -> nominal value of every named parameter.
+        fixed: prescribed displacements (:class:`~signorini.loads.Fixed`).
+        loads: boundary loads (:class:`~signorini.loads.Pressure`, ``Traction``).
+        contact: contact surfaces (:class:`~signorini.contact.Contact`).
+        shape: name -> design velocity field V (n_nodes, 2). The reference
+            coordinates are X(phi) = X0 + sum_k (phi_k - phi_k0) V_k, where
+            phi_k0 is the value of ``k`` in ``params`` when the mesh was made
+            (``shape_nominal``, defaulting to ``params``).
+        shape_nominal: nominal values of the shape parameters.
+    """
+
+    mesh: Mesh
+    material: object
+    params: Mapping[str, float]
+    fixed: tuple = ()
+    loads: tuple = ()
+    contact: tuple = ()
+    shape: Mapping[str, np.ndarray] = field(default_factory=dict)
+    shape_nominal: Mapping[str, float] | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "params", {k: float(v) for k, v in self.params.items()})
+        object.__setattr__(self, "fixed", tuple(self.fixed))
+        object.__setattr__(self, "loads", tuple(self.loads))
+        object.__setattr__(self, "contact", tuple(self.contact))
+        shape = {}
+        for k, V in self.shape.items():
+            V = np.asarray(V, dtype=float)
+            if V.shape != self.mesh.nodes.shape:
+                raise InputError(
+                    f"design velocity {k!r} has shape {V.shape}, expected {self.mesh.nodes.shape}"
+                )
+            if k not in self.params:
+                raise UnknownParameterError(
+                    f"shape parameter {k!r} has no value in params; add it (its nominal value)"
+                )
+            shape[k] = V
+        object.__setattr__(self, "shape", shape)
+        if self.shape_nominal is None:
+            object.__setattr__(self, "shape_nominal", {k: self.params[k] for k in shape})
+
+    def with_params(self, **values: float) -> Problem:
+        """A copy with some parameter values changed (names must exist)."""
+        for k in values:
+            if k not in self.params:
+                raise UnknownParameterError(
+                    f"unknown parameter {k!r}; this problem defines {sorted(self.params)}"
+                )
+        return dataclasses.replace(self, params={**self.params, **values})

@@ -1,0 +1,1 @@
+"""Ready-made benchmark problems of the paper."""

@@ -1,0 +1,150 @@
+"""The result of :func:`signorini.solve`: increments, fields and sensitivities."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._jax import jax, jnp
+from .errors import InputError
+from .newton import StepLog
+from .params import as_jax, unit_tangents
+
+
+@dataclass
+class Increment:
+    """One converged load increment.
+
+    Attributes:
+        t: load factor at the end of the increment.
+        w: (n_dof,) unknowns (displacements then multipliers).
+        newton: the Newton log of the increment.
+        reactions: (n_prescribed,) residual at the prescribed DOFs (reaction forces,
+            sign: force exerted by the support on the body is ``-reactions``... see
+            :meth:`Solution.reactions`).
+        sens: parameter name -> dw/dphi (n_dof,).
+        timing: DDM timings (factorisation, pseudo-load, back-substitution) in s.
+        state: history data after the increment (path-dependent problems).
+        state_sens: its sensitivities.
+    """
+
+    t: float
+    w: np.ndarray
+    newton: StepLog
+    reactions: np.ndarray
+    sens: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    state: object = None
+    state_sens: object = None
+
+
+class Solution:
+    """Converged increments of a solve and everything derived from them.
+
+    Index ``i`` selects an increment (default ``-1``: the last one).
+    """
+
+    def __init__(self, model, params: dict, names: list[str]):
+        self.model = model
+        self.params = params
+        self.names = names
+        self.increments: list[Increment] = []
+        self.log: list[StepLog] = []
+        self.status = "running"
+        self._jp = as_jax(params)
+
+    # -------------------------------------------------------------- basics
+    def __repr__(self):
+        return (f"Solution(status={self.status!r}, increments={len(self.increments)}, "
+                f"n_dof={self.model.n_dof}, sensitivities={self.names})")
+
+    def _inc(self, i) -> Increment:
+        if not self.increments:
+            raise InputError("the solution has no converged increment")
+        return self.increments[i]
+
+    @property
+    def newton_iterations(self) -> list[int]:
+        """Newton iterations of each converged increment."""
+        return [inc.newton.iterations for inc in self.increments]
+
+    def displacement(self, i: int = -1) -> np.ndarray:
+        """(n_nodes, 2) nodal displacements."""
+        return self._inc(i).w[: 2 * self.model.n_nodes].reshape(-1, 2)
+
+    def reference(self) -> np.ndarray:
+        """(n_nodes, 2) reference coordinates X(phi)."""
+        return np.asarray(self.model.reference(self._jp))
+
+    def current(self, i: int = -1) -> np.ndarray:
+        """(n_nodes, 2) current coordinates x = X + u."""
+        return self.reference() + self.displacement(i)
+
+    def multipliers(self, i: int = -1, surface: int = 0) -> np.ndarray:
+        s = self.model.surfaces[surface]
+        w = self._inc(i).w
+        return w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(-1, s.n_mult)
+
+    def reactions(self, i: int = -1) -> np.ndarray:
+        """(n_nodes, 2) reaction forces of the supports on the body (0 where free)."""
+        r = np.zeros(2 * self.model.n_nodes)
+        r[self.model.prescribed] = -self._inc(i).reactions
+        return r.reshape(-1, 2)
+
+    # ------------------------------------------------------- sensitivities
+    def _check_name(self, name):
+        if name not in self.names:
+            raise InputError(f"no sensitivity for {name!r}; solved with sensitivities={self.names}")
+
+    def w_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
+        self._check_name(name)
+        return self._inc(i).sens[name]
+
+    def displacement_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
+        """(n_nodes, 2) Du/Dphi."""
+        return self.w_sensitivity(name, i)[: 2 * self.model.n_nodes].reshape(-1, 2)
+
+    def multiplier_sensitivity(self, name: str, i: int = -1, surface: int = 0) -> np.ndarray:
+        s = self.model.surfaces[surface]
+        wd = self.w_sensitivity(name, i)
+        return wd[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(-1, s.n_mult)
+
+    def response(self, fn: Callable, i: int = -1, with_sensitivities: bool = True):
+        """Value and DDM sensitivities of a response F = fn(w, params) (paper eq. 5).
+
+        ``fn`` is a JAX-traceable function of the unknowns w (n_dof,) and the
+        parameter dict. Returns (value, {name: DF/Dphi}).
+        """
+        inc = self._inc(i)
+        w = jnp.asarray(inc.w)
+        val = jax.tree_util.tree_map(np.asarray, fn(w, self._jp))
+        if not with_sensitivities or not self.names:
+            return val, {}
+        e = unit_tangents(self._jp, self.names)
+        wd = jnp.asarray(np.stack([inc.sens[n] for n in self.names]))
+        d = jax.vmap(lambda a, b: jax.jvp(fn, (w, self._jp), (a, b))[1])(wd, e)
+        return val, {n: jax.tree_util.tree_map(lambda v, k=k: np.asarray(v[k]), d)
+                     for k, n in enumerate(self.names)}
+
+    def contact(self, i: int = -1, surface: int = 0) -> dict:
+        """Per contact node: ``node, x_ref, x, gap, p_N, p_T, area`` and
+        ``dp_N_d<name>``, ``dp_T_d<name>``, ``dgap_d<name>`` for every design parameter."""
+        m = self.model
+        s = m.surfaces[surface]
+        t = self._inc(i).t
+        fn = lambda w, p: m.contact_fields(w, p, t, surface)
+        val, sens = self.response(fn, i)
+        out = {"node": s.nodes, "x_ref": self.reference()[s.nodes], "x": self.current(i)[s.nodes]}
+        out.update({k: np.asarray(v) for k, v in val.items()})
+        for name, d in sens.items():
+            out[f"dp_N_d{name}"] = np.asarray(d["p_N"])
+            out[f"dp_T_d{name}"] = np.asarray(d["p_T"])
+            out[f"dgap_d{name}"] = np.asarray(d["gap"])
+        return out
+
+    def stress(self, i: int = -1):
+        """Element-averaged Cauchy stress (n_cells, 3, 3) and its sensitivities."""
+        val, sens = self.response(lambda w, p: self.model.stresses(w, p), i)
+        return val, sens
