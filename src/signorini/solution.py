@@ -93,6 +93,15 @@ class Solution:
         r[self.model.prescribed] = -self._inc(i).reactions
         return r.reshape(-1, 2)
 
+    def reaction_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
+        """(n_nodes, 2) DDM sensitivity of :meth:`reactions` (0 where free)."""
+        self._check_name(name)
+        m = self.model
+        _, d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))
+        r = np.zeros(2 * m.n_nodes)
+        r[m.prescribed] = -d[name]
+        return r.reshape(-1, 2)
+
     # ------------------------------------------------------- sensitivities
     def _check_name(self, name):
         if name not in self.names:
@@ -111,20 +120,30 @@ class Solution:
         wd = self.w_sensitivity(name, i)
         return wd[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(-1, s.n_mult)
 
-    def response(self, fn: Callable, i: int = -1, with_sensitivities: bool = True):
-        """Value and DDM sensitivities of a response F = fn(w, params) (paper eq. 5).
+    def response(self, fn: Callable, i: int = -1, with_sensitivities: bool = True, key=None):
+        """Value and DDM sensitivities of a response F = fn(w, params, t) (paper eq. 5).
 
-        ``fn`` is a JAX-traceable function of the unknowns w (n_dof,) and the
-        parameter dict. Returns (value, {name: DF/Dphi}).
+        ``fn`` is a JAX-traceable function of the unknowns w (n_dof,), the
+        parameter dict and the load factor t. ``key`` (hashable) caches the
+        compiled function on the model for reuse. Returns (value, {name: DF/Dphi}).
         """
         inc = self._inc(i)
         w = jnp.asarray(inc.w)
-        val = jax.tree_util.tree_map(np.asarray, fn(w, self._jp))
+        cache = getattr(self.model, "cache", {})
+        if key is not None and key in cache:
+            val_fn, jvp_fn = cache[key]
+        else:
+            val_fn = jax.jit(fn)
+            jvp_fn = jax.jit(jax.vmap(lambda w, p, t, a, b: jax.jvp(
+                lambda w_, p_: fn(w_, p_, t), (w, p), (a, b))[1], (None, None, None, 0, 0)))
+            if key is not None:
+                cache[key] = (val_fn, jvp_fn)
+        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, inc.t))
         if not with_sensitivities or not self.names:
             return val, {}
         e = unit_tangents(self._jp, self.names)
         wd = jnp.asarray(np.stack([inc.sens[n] for n in self.names]))
-        d = jax.vmap(lambda a, b: jax.jvp(fn, (w, self._jp), (a, b))[1])(wd, e)
+        d = jvp_fn(w, self._jp, inc.t, wd, e)
         return val, {n: jax.tree_util.tree_map(lambda v, k=k: np.asarray(v[k]), d)
                      for k, n in enumerate(self.names)}
 
@@ -133,9 +152,8 @@ class Solution:
         ``dp_N_d<name>``, ``dp_T_d<name>``, ``dgap_d<name>`` for every design parameter."""
         m = self.model
         s = m.surfaces[surface]
-        t = self._inc(i).t
-        fn = lambda w, p: m.contact_fields(w, p, t, surface)
-        val, sens = self.response(fn, i)
+        fn = lambda w, p, t: m.contact_fields(w, p, t, surface)
+        val, sens = self.response(fn, i, key=("contact", surface))
         out = {"node": s.nodes, "x_ref": self.reference()[s.nodes], "x": self.current(i)[s.nodes]}
         out.update({k: np.asarray(v) for k, v in val.items()})
         for name, d in sens.items():
@@ -146,5 +164,5 @@ class Solution:
 
     def stress(self, i: int = -1):
         """Element-averaged Cauchy stress (n_cells, 3, 3) and its sensitivities."""
-        val, sens = self.response(lambda w, p: self.model.stresses(w, p), i)
+        val, sens = self.response(lambda w, p, t: self.model.stresses(w, p), i, key=("stress",))
         return val, sens

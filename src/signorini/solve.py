@@ -35,8 +35,8 @@ _MODELS: OrderedDict = OrderedDict()
 def model_for(problem: Problem) -> Model:
     """The compiled model of a problem, reused for problems that differ only in
     parameter values (finite differences, optimisation loops)."""
-    key = (id(problem.mesh), id(problem.material), problem.fixed, problem.loads,
-           problem.contact, id(problem.shape), tuple(sorted(problem.params)))
+    key = (id(problem.mesh), id(problem.material), problem.fixed, problem.loads, problem.contact,
+           tuple((k, id(v)) for k, v in problem.shape.items()), tuple(sorted(problem.params)))
     try:
         m = _MODELS[key]
         _MODELS.move_to_end(key)
@@ -46,6 +46,7 @@ def model_for(problem: Problem) -> Model:
     m = Model(problem)
     m.pattern = SparsityPattern(m.block_dofs(), m.n_dof, m.free)
     m.fext = jax.jit(m.external_forces)
+    m.cache = {}  # compiled DDM / response functions, reused across solves
     try:
         _MODELS[key] = m
         if len(_MODELS) > 8:
@@ -83,7 +84,11 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     params = as_jax(problem.params)
     model.check(problem.params)
     lin = get_solver(solver)
-    ddm = DDM(model, names) if names else None
+    ddm = None
+    if names:
+        ddm = model.cache.get(("ddm", tuple(names)))
+        if ddm is None:
+            ddm = model.cache[("ddm", tuple(names))] = DDM(model, names)
     weights = model.convergence_weights(params)
 
     sol = Solution(model, dict(problem.params), names)
