@@ -6,7 +6,7 @@ place where JAX is configured); it has no other side effect.
 """
 
 from . import _jax  # noqa: F401  (float64 before anything else touches JAX)
-from .contact import AugmentedLagrangian, Contact, Penalty, equivalent_areas
+from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty, equivalent_areas
 from .errors import (ConvergenceError, InputError, InvertedElementError, SignoriniError,
                      SingularTangentError, SolverError, UnknownParameterError)
 from .loads import Fixed, Pressure, Traction
@@ -22,7 +22,7 @@ from .solve import solve
 __version__ = "0.1.0"
 
 __all__ = [
-    "AugmentedLagrangian", "Circle", "Contact", "ConvergenceError", "Fixed", "InputError",
+    "AugmentedLagrangian", "Circle", "Contact", "ConvergenceError", "Coulomb", "Fixed", "InputError",
     "InvertedElementError", "LinearElastic", "Line", "Mesh", "NeoHooke", "NewtonOptions",
     "Penalty", "Pressure", "Problem", "SignoriniError", "SingularTangentError", "Solution",
     "SolverError", "Traction", "UnknownParameterError", "equivalent_areas", "finite_difference",

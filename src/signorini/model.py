@@ -27,7 +27,7 @@ from .contact.area import check_edges, contact_nodes, equivalent_areas, nodal_no
 from .errors import InputError
 from .mesh import check_orientation
 from .obstacles import Linearized
-from .params import as_jax, check_names, names_in, resolve
+from .params import as_jax, check_names, names_in, resolve, unit_tangents
 from .problem import Problem
 
 
@@ -57,6 +57,7 @@ class Model:
         self.conn = mesh.cells
         self.edofs = np.stack([2 * self.conn, 2 * self.conn + 1], axis=-1).reshape(-1, 8)
         self._check_names()
+        self._X0_np = mesh.nodes
 
         # contact surfaces and multiplier DOFs
         off = 2 * self.n_nodes
@@ -101,6 +102,7 @@ class Model:
                     "displacement components prescribed, so contact there is meaningless; remove it "
                     "from the contact set or free one component"
                 )
+        self._tangential = [self._tangential_mask(s) for s in self.surfaces]
         self.load_edges = [mesh.edge_set(l.edges) for l in p.loads]
         finite = getattr(p.material, "finite_strain", True)
         self.linear_contact = [
@@ -113,6 +115,10 @@ class Model:
 
         self._local = jax.jit(self._local_impl)
         self._residual = jax.jit(self.residual)
+        self._history_fn = jax.jit(self.history)
+        self._history_jvp = jax.jit(jax.vmap(
+            lambda w, p, t, wd, e: jax.jvp(lambda w_, p_: self.history(w_, p_, t), (w, p), (wd, e))[1],
+            (None, None, None, 0, 0)))
 
     # ------------------------------------------------------------------ setup
     def _check_names(self):
@@ -125,6 +131,9 @@ class Model:
         for c in p.contact:
             specs += c.specs()
         check_names(names_in(specs), p.params, "the problem definition")
+        for s in specs:  # expressions are evaluated once here, before any JAX tracing
+            if callable(s):
+                resolve(s, p.params)
 
     def check(self, params: dict) -> None:
         """Validate parameter values (positive modulus, radius, eps; no inverted element)."""
@@ -137,6 +146,28 @@ class Model:
             X = np.asarray(self.reference(as_jax(params)))
             check_orientation(X, self.conn, "reference mesh at the given shape parameters")
 
+    def _tangential_mask(self, s: Surface):
+        """(nc,) 1.0 where a history (friction) node carries lam_T, 0.0 where its
+        tangential displacement is prescribed (symmetry line: g_T would be
+        identically 0 and the stick row of lam_T zero, THEORY 3); None for
+        methods without history. "Tangential" = the prescribed component is closer
+        to the body's reference tangent than to its normal (nominal mesh)."""
+        if not getattr(s.contact.method, "has_history", False):
+            return None
+        N = np.asarray(nodal_normals(self._X0_np, s.edges, s.nodes))
+        mask = np.ones(len(s.nodes))
+        pres = set(self.prescribed.tolist())
+        for k, n in enumerate(s.nodes):
+            for c in (0, 1):
+                if 2 * int(n) + c in pres and abs(N[k, 1 - c]) >= abs(N[k, c]):
+                    mask[k] = 0.0  # |T_c| = |N_{1-c}|: prescribed component is tangential
+        return mask
+
+    @property
+    def has_history(self) -> bool:
+        """True if some contact surface carries history (friction)."""
+        return any(m is not None for m in self._tangential)
+
     # ----------------------------------------------------------- pure kernels
     def reference(self, params):
         """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities."""
@@ -148,7 +179,7 @@ class Model:
     def split(self, w):
         """w -> (u (n_nodes, 2), [lam_s (nc_s, m_s) per surface])."""
         u = w[: 2 * self.n_nodes].reshape(-1, 2)
-        lams = [w[s.lam_offset : s.lam_offset + s.nodes.size * s.n_mult].reshape(-1, s.n_mult)
+        lams = [w[s.lam_offset : s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
                 for s in self.surfaces]
         return u, lams
 
@@ -182,6 +213,64 @@ class Model:
             return Linearized(s.contact.obstacle, *Xs)
         return s.contact.obstacle
 
+    def _node_history(self, i: int, state_n):
+        """Per-node history input of surface i for ``method.residual``: None, or
+        (s_n (nc,), tangential mask (nc,)) for friction surfaces."""
+        if self._tangential[i] is None:
+            return None
+        if state_n is None:
+            raise InputError(
+                f"contact surface {self.surfaces[i].contact.edges!r} has friction, which needs the "
+                "history state_n = (w_n, history_n); start from model.initial_state(w, params)")
+        return (state_n[1][i], jnp.asarray(self._tangential[i]))
+
+    # ---------------------------------------------------------------- history
+    def history(self, w, params, t):
+        """Pure history update h(w, phi) after convergence at t (THEORY 1, 3): the slip
+        coordinate s = s(x_S) of every node of a friction surface on the obstacle at
+        t (linearised obstacle in small-strain runs); None for other surfaces."""
+        X = self.reference(params)
+        u, lams = self.split(w)
+        out = []
+        for i, s in enumerate(self.surfaces):
+            if self._tangential[i] is None:
+                out.append(None)
+                continue
+            x, _, _, geo, _, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
+            out.append(jax.vmap(lambda xs, X0, s=s, geo=geo: self._obstacle_at(s, X0).coordinate(
+                xs, geo))(x, Xs))
+        return tuple(out)
+
+    def initial_state(self, w, params):
+        """state_0 = (w_0, h_0) with s_0 = s(X(phi)) at t = 0; None without history."""
+        if not self.has_history:
+            return None
+        w = jnp.asarray(w)
+        return (w, self._history_fn(w, params, 0.0))
+
+    def initial_state_sensitivity(self, params, names):
+        """D state_0 / D phi_k batched over ``names``: (0, grad s . V_k + ds/dphi_k)."""
+        if not self.has_history:
+            return None
+        e = unit_tangents(params, list(names))
+        z = jnp.zeros((len(names), self.n_dof))
+        return (z, self._history_jvp(jnp.zeros(self.n_dof), params, 0.0, z, e))
+
+    def update_state(self, inc, params, t, state_n, state_dot, names):
+        """New state (w, h(w, phi)) after a converged increment and its sensitivity
+        (JVP of :meth:`history` with tangents (w_dot, e_k), batched over ``names``).
+        Stores both on ``inc`` (``state``, ``state_sens``)."""
+        if not self.has_history:
+            return state_n, state_dot
+        w = jnp.asarray(inc.w)
+        state = (w, self._history_fn(w, params, t))
+        sdot = None
+        if state_dot is not None and len(names):
+            wd = jnp.asarray(np.stack([inc.sens[n] for n in names]))
+            sdot = (wd, self._history_jvp(w, params, t, wd, unit_tangents(params, list(names))))
+        inc.state, inc.state_sens = state, sdot
+        return state, sdot
+
     def residual(self, w, params, t, state_n=None):
         """Global residual R (n_dof,) = internal + contact - external forces;
         multiplier rows hold the contact-law equations (paper eqs. 19-20)."""
@@ -193,10 +282,9 @@ class Model:
             u[self.conn], X[self.conn])
         R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
         R = R - self.external_forces(X, params, t)
-        hist = state_n[1] if state_n is not None else None
         for i, s in enumerate(self.surfaces):
             x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
-            h = None if hist is None else hist[i]
+            h = self._node_history(i, state_n)
             method = s.contact.method
             rc = jax.vmap(lambda xs, ls, a, hs, X0: method.residual(
                 xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs),
@@ -219,10 +307,9 @@ class Model:
         R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
         R = R - self.external_forces(X, params, t)
         blocks = [Ke]
-        hist = state_n[1] if state_n is not None else None
         for i, s in enumerate(self.surfaces):
             x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
-            h = None if hist is None else hist[i]
+            h = self._node_history(i, state_n)
             method = s.contact.method
 
             def node(xs, ls, a, hs, X0, s=s, method=method, geo=geo, cp=cp):
@@ -252,7 +339,7 @@ class Model:
         wts = np.ones(self.n_dof)
         for s in self.surfaces:
             cp = s.contact.method.values(params)
-            wts[s.lam_dofs.ravel()] = float(s.contact.method.row_scale(cp))
+            wts[s.lam_dofs] = np.asarray(s.contact.method.row_scale(cp), dtype=float)  # scalar or (m,)
         return wts
 
     # ------------------------------------------------------------ post-process
@@ -267,6 +354,21 @@ class Model:
         pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
             xs, ls, a, geo, self._obstacle_at(s, X0), cp))(x, lam, A, Xs)
         return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
+
+    def contact_status(self, w, params, t, state_n, surface: int = 0):
+        """Pure function: per-node (status code, slip increment g_T) of a friction
+        surface (codes of :mod:`signorini.contact.friction`); state_n = state
+        *before* the increment of w."""
+        s = self.surfaces[surface]
+        X = self.reference(params)
+        u, lams = self.split(w)
+        x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[surface], params, t)
+        meth = s.contact.method
+        h = self._node_history(surface, state_n)
+        st = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
+            xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
+        gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self._obstacle_at(s, X0), hs))(x, h, Xs)
+        return st, gt
 
     def stresses(self, w, params):
         """Pure function: element-averaged Cauchy stress (n_cells, 3, 3)."""

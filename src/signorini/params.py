@@ -33,7 +33,13 @@ def resolve(spec: Spec, params: Mapping):
                 f"unknown parameter {spec!r}; defined parameters: {sorted(params)}"
             ) from None
     if callable(spec):
-        return spec(params)
+        try:
+            return spec(params)
+        except KeyError as e:
+            raise UnknownParameterError(
+                f"unknown parameter {e.args[0]!r} in a parameter expression; defined parameters: "
+                f"{sorted(params)}"
+            ) from None
     return spec
 
 

@@ -85,7 +85,7 @@ class Solution:
     def multipliers(self, i: int = -1, surface: int = 0) -> np.ndarray:
         s = self.model.surfaces[surface]
         w = self._inc(i).w
-        return w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(-1, s.n_mult)
+        return w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
 
     def reactions(self, i: int = -1) -> np.ndarray:
         """(n_nodes, 2) reaction forces of the supports on the body (0 where free)."""
@@ -94,13 +94,38 @@ class Solution:
         return r.reshape(-1, 2)
 
     def reaction_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
-        """(n_nodes, 2) DDM sensitivity of :meth:`reactions` (0 where free)."""
+        """(n_nodes, 2) DDM sensitivity of :meth:`reactions` (0 where free).
+
+        With history (friction) the residual also depends on the state before the
+        increment, so its tangent D state_n / D phi enters the JVP (THEORY 1)."""
         self._check_name(name)
         m = self.model
-        _, d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))
         r = np.zeros(2 * m.n_nodes)
+        if getattr(m, "has_history", False):
+            inc = self._inc(i)
+            state, sdot = self.state_before(i)
+            k = self.names.index(name)
+            e = unit_tangents(self._jp, self.names)
+            tang = jax.tree_util.tree_map(lambda v: v[k], (jnp.asarray(np.stack(
+                [inc.sens[n] for n in self.names])), e, sdot))
+            _, d = jax.jvp(lambda w, p, st: m.residual(w, p, inc.t, st)[m.prescribed],
+                           (jnp.asarray(inc.w), self._jp, state), tang)
+            r[m.prescribed] = -np.asarray(d)
+            return r.reshape(-1, 2)
+        _, d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))
         r[m.prescribed] = -d[name]
         return r.reshape(-1, 2)
+
+    def state_before(self, i: int = -1):
+        """(state_n, its sensitivities) at the start of increment i (path-dependent
+        problems): the state after increment i-1, or the initial state."""
+        n = range(len(self.increments))[i]
+        if n > 0:
+            prev = self.increments[n - 1]
+            return prev.state, prev.state_sens
+        m = self.model
+        sdot = m.initial_state_sensitivity(self._jp, self.names) if self.names else None
+        return m.initial_state(np.zeros(m.n_dof), self._jp), sdot
 
     # ------------------------------------------------------- sensitivities
     def _check_name(self, name):
@@ -118,7 +143,7 @@ class Solution:
     def multiplier_sensitivity(self, name: str, i: int = -1, surface: int = 0) -> np.ndarray:
         s = self.model.surfaces[surface]
         wd = self.w_sensitivity(name, i)
-        return wd[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(-1, s.n_mult)
+        return wd[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
 
     def response(self, fn: Callable, i: int = -1, with_sensitivities: bool = True, key=None):
         """Value and DDM sensitivities of a response F = fn(w, params, t) (paper eq. 5).
@@ -149,7 +174,9 @@ class Solution:
 
     def contact(self, i: int = -1, surface: int = 0) -> dict:
         """Per contact node: ``node, x_ref, x, gap, p_N, p_T, area`` and
-        ``dp_N_d<name>``, ``dp_T_d<name>``, ``dgap_d<name>`` for every design parameter."""
+        ``dp_N_d<name>``, ``dp_T_d<name>``, ``dgap_d<name>`` for every design parameter;
+        with friction also ``status`` (``open``/``stick``/``slip``) and ``slip`` (g_T of
+        the increment)."""
         m = self.model
         s = m.surfaces[surface]
         fn = lambda w, p, t: m.contact_fields(w, p, t, surface)
@@ -160,6 +187,13 @@ class Solution:
             out[f"dp_N_d{name}"] = np.asarray(d["p_N"])
             out[f"dp_T_d{name}"] = np.asarray(d["p_T"])
             out[f"dgap_d{name}"] = np.asarray(d["gap"])
+        if hasattr(s.contact.method, "status"):  # friction: open / stick / slip, slip increment
+            from .contact.friction import STATUS_NAMES
+
+            st, gt = m.contact_status(jnp.asarray(self._inc(i).w), self._jp, self._inc(i).t,
+                                      self.state_before(i)[0], surface)
+            out["status"] = np.array([STATUS_NAMES[k] for k in np.asarray(st)])
+            out["slip"] = np.asarray(gt)
         return out
 
     def stress(self, i: int = -1):

@@ -150,7 +150,8 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             state_n, state_dot = model.update_state(inc, params, t_new, state_n, state_dot, names)
         sol.increments.append(inc)
         w, t = w_trial, t_new
-        if cuts and dt < dt_nominal:
+        cuts = 0  # max_cuts counts the halvings of one increment
+        if dt < dt_nominal:
             dt = min(2.0 * dt, dt_nominal)  # grow back after a successful cut increment
     sol.status = "converged"
     return sol

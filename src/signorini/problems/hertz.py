@@ -19,7 +19,7 @@ import numpy as np
 
 from .._jax import jnp
 from ..contact import AugmentedLagrangian, Contact, Penalty
-from ..errors import InputError
+from ..errors import InputError, UnknownParameterError
 from ..loads import Fixed, Pressure
 from ..materials import LinearElastic, NeoHooke
 from ..mesh import graded_coordinates, rectangle
@@ -65,6 +65,11 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
         size: block width and depth in units of a.
     """
     values = dict(DEFAULTS)
+    known = set(DEFAULTS) | {"eps", "bump"}
+    for k in params or {}:
+        if k not in known:
+            raise UnknownParameterError(
+                f"unknown parameter {k!r} for the Hertz problem; defined parameters: {sorted(known)}")
     values.update(params or {})
     if refine < 0:
         raise InputError(f"refine must be >= 0, got {refine}")

@@ -1,0 +1,159 @@
+"""Coulomb friction by the Alart-Curnier augmented Lagrangian (THEORY section 3).
+
+Per contact node S two multipliers are global unknowns: lam_N (<= 0, nominal
+normal traction) and lam_T (tangential traction). With the gaps
+
+    g_N = g(x_S),   g_T = s(x_S) - s_n      (s: slip coordinate on the obstacle, s_n: history)
+
+and the augmented multipliers lam^_N = lam_N + eps_N g_N, lam^_T = lam_T + eps_T g_T,
+the friction-disc radius is rho = mu <lam^_N>_- and the pseudo-potential is
+
+    l = (<lam^_N>_-^2 - lam_N^2) / (2 eps_N)
+        + (lam^_T^2 - lam_T^2 - dist(lam^_T, [-rho, rho])^2) / (2 eps_T)
+
+(dist(y, [-rho, rho]) = <|y| - rho>, so this is THEORY eq. 3.1). The node
+residual is the gradient of A_S l in (x_S, lam) *at fixed rho*; rho is computed
+outside that gradient and passed in, so the Jacobian taken by
+:class:`~signorini.model.Model` (``jax.jacfwd`` of :meth:`Coulomb.residual`)
+differentiates through rho and is the exact, unsymmetric tangent of the
+non-associated law (THEORY section 3, "JAX construction"). At convergence
+lam_N = min(lam^_N, 0) and lam_T = proj(lam^_T) = tau: Signorini and Coulomb
+hold exactly for any eps_N, eps_T > 0.
+
+Sign convention (THEORY section 0): the traction on the body is
+-(lam_N n' + lam_T t'), so the reported tractions are p_N = -lam_N (pressure,
+>= 0) and p_T = -lam_T, the tangential traction on the body along the obstacle
+tangent t' (it opposes the slip increment g_T).
+
+Case selection at the boundaries (closed at zero, as in
+:func:`~signorini.contact.methods._neg_part`): a node is closed when
+lam^_N <= 0; a closed node with mu > 0 sticks when |lam^_T| <= rho (so a body
+touching the die at the start is held tangentially from the first iteration);
+open nodes and mu = 0 always take the free (slip) branch, whose tangent for
+mu = 0 is exactly the frictionless one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .._jax import jax, jnp
+from ..errors import InputError
+from ..params import Spec, resolve
+from .methods import _neg_part
+
+#: Integer codes returned by :meth:`Coulomb.status`.
+OPEN, STICK, SLIP = 0, 1, 2
+STATUS_NAMES = ("open", "stick", "slip")
+
+
+def _project(y, rho, stick):
+    """tau = proj_[-rho, rho](y): y where sticking, +-rho (sign of y) otherwise."""
+    return jnp.where(stick, y, jnp.where(y >= 0.0, rho, -rho))
+
+
+@dataclass(frozen=True)
+class Coulomb:
+    """Coulomb friction on a rigid obstacle, Alart-Curnier augmented Lagrangian.
+
+    Two multipliers per contact node, (lam_N, lam_T). The contact node's slip
+    coordinate after the previous converged increment, s_n, is history data
+    (carried and differentiated by :class:`~signorini.model.Model`). Nodes whose
+    tangential displacement is prescribed (a symmetry line) get no friction:
+    their lam_T equation is lam_T = 0 (THEORY section 3, symmetry axis).
+
+    Attributes:
+        mu: friction coefficient (>= 0).
+        eps_n, eps_t: augmentation parameters (> 0); they do not change the
+            converged solution, only Newton's path. A smaller ``eps_t`` helps when
+            stick/slip states cycle.
+    """
+
+    mu: Spec = "mu"
+    eps_n: Spec = "eps"
+    eps_t: Spec = "eps_t"
+    n_multipliers: int = field(default=2, init=False)
+    has_history: bool = field(default=True, init=False)
+
+    def specs(self):
+        return (self.mu, self.eps_n, self.eps_t)
+
+    def values(self, params):
+        return {"mu": resolve(self.mu, params), "eps_n": resolve(self.eps_n, params),
+                "eps_t": resolve(self.eps_t, params)}
+
+    def check(self, params):
+        v = {k: float(x) for k, x in self.values(params).items()}
+        if not v["mu"] >= 0:
+            raise InputError(f"the friction coefficient must be >= 0, got mu={v['mu']}")
+        for k in ("eps_n", "eps_t"):
+            if not v[k] > 0:
+                raise InputError(f"the augmented-Lagrangian parameter must be positive, got {k}={v[k]}")
+
+    # ------------------------------------------------------------- kinematics
+    @staticmethod
+    def _hist(hist):
+        if hist is None:
+            raise InputError("Coulomb friction needs the slip history of the contact nodes; "
+                             "call Model.residual with state_n = model.initial_state(...) or later")
+        s_n, tangential = hist
+        return s_n, tangential
+
+    def augmented(self, x, lam, geo, obstacle, cp, s_n):
+        """(lam^_N, lam^_T, g_N, g_T) of one node."""
+        g_n = obstacle.gap(x, geo)
+        g_t = obstacle.coordinate(x, geo) - s_n
+        return lam[0] + cp["eps_n"] * g_n, lam[1] + cp["eps_t"] * g_t, g_n, g_t
+
+    def radius(self, x, lam, geo, obstacle, cp):
+        """rho = mu <lam^_N>_- (friction-disc radius, >= 0)."""
+        lam_hat_n = lam[0] + cp["eps_n"] * obstacle.gap(x, geo)
+        return -cp["mu"] * _neg_part(lam_hat_n)
+
+    def _stick(self, lam_hat_n, lam_hat_t, rho, cp):
+        return (lam_hat_n <= 0.0) & (cp["mu"] > 0.0) & (jnp.abs(lam_hat_t) <= rho)
+
+    # -------------------------------------------------------- pseudo-potential
+    def potential(self, x, lam, A, geo, obstacle, cp, hist, rho):
+        """A_S l(x, lam; rho) with the disc radius rho held fixed (THEORY 3)."""
+        s_n, tangential = self._hist(hist)
+        eps_n, eps_t = cp["eps_n"], cp["eps_t"]
+        lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
+        l_n = (_neg_part(lhn) ** 2 - lam[0] ** 2) / (2.0 * eps_n)
+        tau = _project(lht, rho, self._stick(lhn, lht, rho, cp))
+        l_t = (lht**2 - lam[1] ** 2 - (lht - tau) ** 2) / (2.0 * eps_t)
+        l_fixed = -lam[1] ** 2 / (2.0 * eps_t)  # no friction: lam_T = 0
+        return A * (l_n + jnp.where(tangential > 0, l_t, l_fixed))
+
+    def residual(self, x, lam, A, geo, obstacle, cp, hist):
+        """(4,): contact force on x_S, then R_lamN, R_lamT (THEORY 3).
+
+        rho is evaluated here, outside the inner gradient, so that the caller's
+        Jacobian of this function includes d rho / d(x, lam_N)."""
+        rho = self.radius(x, lam, geo, obstacle, cp)
+        fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp, hist, rho)
+        return jnp.concatenate([fx, fl])
+
+    # ------------------------------------------------------------ post-process
+    def tractions(self, x, lam, A, geo, obstacle, cp):
+        """(p_N, p_T) = (-lam_N, -lam_T): pressure (>= 0) and tangential traction
+        on the body along the obstacle tangent t'."""
+        return -lam[0], -lam[1]
+
+    def status(self, x, lam, A, geo, obstacle, cp, hist):
+        """OPEN (0), STICK (1) or SLIP (2) of a node, by the branch the residual
+        takes at (x, lam). A closed node without friction DOF (prescribed
+        tangential displacement) cannot slip and counts as STICK."""
+        s_n, tangential = self._hist(hist)
+        lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
+        rho = self.radius(x, lam, geo, obstacle, cp)
+        stick = self._stick(lhn, lht, rho, cp) | (tangential <= 0)
+        return jnp.where(lhn <= 0.0, jnp.where(stick, STICK, SLIP), OPEN)
+
+    def slip(self, x, geo, obstacle, hist):
+        """Slip increment g_T = s(x) - s_n of the current increment."""
+        return obstacle.coordinate(x, geo) - self._hist(hist)[0]
+
+    def row_scale(self, cp):
+        """Per-multiplier factors giving the lam_N, lam_T rows force units."""
+        return jnp.stack([cp["eps_n"], cp["eps_t"]])
