@@ -18,6 +18,7 @@ from .problem import Problem
 from .sensitivity import finite_difference
 from .solution import Solution
 from .solve import solve
+from . import io  # noqa: E402  (read_mesh, write_vtu, ...)
 
 __version__ = "0.1.0"
 

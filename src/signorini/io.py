@@ -10,6 +10,57 @@ import meshio
 import numpy as np
 
 
+def read_mesh(path) -> "Mesh":
+    """Read a Q4 mesh (gmsh .msh or any meshio format) with named sets.
+
+    Quadrilateral cells become the mesh; every named physical group of line
+    elements (gmsh ``$PhysicalNames``) becomes an edge set (oriented
+    counter-clockwise from its cell) and a node set of the same name; named
+    groups of vertex elements become node sets. Cells are renumbered
+    counter-clockwise if needed.
+    """
+    from .errors import InputError
+    from .mesh import Mesh, signed_jacobians
+
+    m = meshio.read(path)
+    quads = [c.data for c in m.cells if c.type == "quad"]
+    if not quads:
+        kinds = sorted({c.type for c in m.cells})
+        raise InputError(f"{path}: no quadrilateral cells (found {kinds}); signorini needs Q4 meshes "
+                         "(in gmsh: Recombine Surface)")
+    other = sorted({c.type for c in m.cells} - {"quad", "line", "vertex"})
+    if other:
+        raise InputError(f"{path}: unsupported cell types {other}; only quad (+ line/vertex sets)")
+    nodes = np.asarray(m.points)[:, :2]
+    cells = np.concatenate(quads).astype(np.int64)
+    det = signed_jacobians(nodes, cells)
+    flip = det.sum(axis=1) < 0
+    cells[flip] = cells[flip][:, ::-1]
+    names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
+    phys = m.cell_data.get("gmsh:physical")
+    edge_sets, node_sets = {}, {"all": np.arange(len(nodes))}
+    if phys is not None:
+        probe = Mesh(nodes, cells)
+        boundary = {tuple(sorted(e)): tuple(e) for e in probe.boundary_edges()}
+        for block, tags in zip(m.cells, phys):
+            for tag in np.unique(tags):
+                name = names.get(int(tag), f"physical_{int(tag)}")
+                data = block.data[tags == tag]
+                if block.type == "line":
+                    edges = []
+                    for a, b in data:
+                        key = (min(a, b), max(a, b))
+                        if key not in boundary:
+                            raise InputError(f"{path}: edge set {name!r} has edge ({a}, {b}) that is "
+                                             "not on the boundary of the quad mesh")
+                        edges.append(boundary[key])
+                    edge_sets[name] = np.asarray(edges, dtype=np.int64)
+                    node_sets[name] = np.unique(data)
+                elif block.type == "vertex":
+                    node_sets[name] = np.unique(data)
+    return Mesh(nodes, cells, node_sets, edge_sets)
+
+
 def _vec3(a):
     a = np.asarray(a, dtype=float)
     return np.column_stack([a, np.zeros(len(a))])

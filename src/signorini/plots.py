@@ -10,7 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 
-def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "") -> Path:
+def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "",
+           xlim: tuple | None = None) -> Path:
     """Plot curves. Each series: ``{"x", "y", "label", "style"}`` (style optional:
     ``"line"`` or ``"points"``)."""
     fig, ax = plt.subplots(figsize=(6, 4.2), dpi=120)
@@ -23,6 +24,8 @@ def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "
     ax.set_ylabel(ylabel)
     if title:
         ax.set_title(title)
+    if xlim is not None:
+        ax.set_xlim(*xlim)
     ax.grid(alpha=0.3)
     ax.axhline(0, color="k", lw=0.5)
     ax.legend()

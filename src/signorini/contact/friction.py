@@ -47,11 +47,6 @@ OPEN, STICK, SLIP = 0, 1, 2
 STATUS_NAMES = ("open", "stick", "slip")
 
 
-def _project(y, rho, stick):
-    """tau = proj_[-rho, rho](y): y where sticking, +-rho (sign of y) otherwise."""
-    return jnp.where(stick, y, jnp.where(y >= 0.0, rho, -rho))
-
-
 @dataclass(frozen=True)
 class Coulomb:
     """Coulomb friction on a rigid obstacle, Alart-Curnier augmented Lagrangian.
@@ -105,22 +100,33 @@ class Coulomb:
         g_t = obstacle.coordinate(x, geo) - s_n
         return lam[0] + cp["eps_n"] * g_n, lam[1] + cp["eps_t"] * g_t, g_n, g_t
 
-    def radius(self, x, lam, geo, obstacle, cp):
-        """rho = mu <lam^_N>_- (friction-disc radius, >= 0)."""
-        lam_hat_n = lam[0] + cp["eps_n"] * obstacle.gap(x, geo)
-        return -cp["mu"] * _neg_part(lam_hat_n)
+    def cases(self, x, lam, geo, obstacle, cp, hist):
+        """(rho, closed, stick, sign): friction-disc radius rho = mu <lam^_N>_- and
+        the case flags of one node, from its current values.
 
-    def _stick(self, lam_hat_n, lam_hat_t, rho, cp):
-        return (lam_hat_n <= 0.0) & (cp["mu"] > 0.0) & (jnp.abs(lam_hat_t) <= rho)
+        The flags are computed once here and passed to :meth:`potential`, behind an
+        XLA optimisation barrier: every slip node starts an increment exactly on
+        the stick/slip boundary |lam^_T| = rho, and if the compiler re-evaluated
+        the comparison separately for the forces and for the multiplier rows,
+        round-off could pick different branches for them (a singular tangent)."""
+        s_n, _ = self._hist(hist)
+        lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
+        rho = -cp["mu"] * _neg_part(lhn)
+        closed = lhn <= 0.0
+        stick = closed & (cp["mu"] > 0.0) & (jnp.abs(lht) <= rho)
+        flags = jax.lax.optimization_barrier((closed, stick, lht >= 0.0))
+        return (rho, *flags)
 
     # -------------------------------------------------------- pseudo-potential
-    def potential(self, x, lam, A, geo, obstacle, cp, hist, rho):
-        """A_S l(x, lam; rho) with the disc radius rho held fixed (THEORY 3)."""
+    def potential(self, x, lam, A, geo, obstacle, cp, hist, case):
+        """A_S l(x, lam; rho) with the disc radius rho and the case flags held
+        fixed (``case`` from :meth:`cases`; THEORY 3)."""
         s_n, tangential = self._hist(hist)
+        rho, closed, stick, positive = case
         eps_n, eps_t = cp["eps_n"], cp["eps_t"]
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
-        l_n = (_neg_part(lhn) ** 2 - lam[0] ** 2) / (2.0 * eps_n)
-        tau = _project(lht, rho, self._stick(lhn, lht, rho, cp))
+        l_n = (jnp.where(closed, lhn, 0.0) ** 2 - lam[0] ** 2) / (2.0 * eps_n)
+        tau = jnp.where(stick, lht, jnp.where(positive, rho, -rho))  # proj_[-rho, rho](lam^_T)
         l_t = (lht**2 - lam[1] ** 2 - (lht - tau) ** 2) / (2.0 * eps_t)
         l_fixed = -lam[1] ** 2 / (2.0 * eps_t)  # no friction: lam_T = 0
         return A * (l_n + jnp.where(tangential > 0, l_t, l_fixed))
@@ -130,8 +136,8 @@ class Coulomb:
 
         rho is evaluated here, outside the inner gradient, so that the caller's
         Jacobian of this function includes d rho / d(x, lam_N)."""
-        rho = self.radius(x, lam, geo, obstacle, cp)
-        fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp, hist, rho)
+        case = self.cases(x, lam, geo, obstacle, cp, hist)
+        fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp, hist, case)
         return jnp.concatenate([fx, fl])
 
     # ------------------------------------------------------------ post-process
@@ -144,11 +150,9 @@ class Coulomb:
         """OPEN (0), STICK (1) or SLIP (2) of a node, by the branch the residual
         takes at (x, lam). A closed node without friction DOF (prescribed
         tangential displacement) cannot slip and counts as STICK."""
-        s_n, tangential = self._hist(hist)
-        lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
-        rho = self.radius(x, lam, geo, obstacle, cp)
-        stick = self._stick(lhn, lht, rho, cp) | (tangential <= 0)
-        return jnp.where(lhn <= 0.0, jnp.where(stick, STICK, SLIP), OPEN)
+        _, closed, stick, _ = self.cases(x, lam, geo, obstacle, cp, hist)
+        stick = stick | (self._hist(hist)[1] <= 0)
+        return jnp.where(closed, jnp.where(stick, STICK, SLIP), OPEN)
 
     def slip(self, x, geo, obstacle, hist):
         """Slip increment g_T = s(x) - s_n of the current increment."""

@@ -165,7 +165,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     plots.curves(out / "pressure.png", [
         {"x": xa, "y": pressure(xa, v["P"], v["R"], v["E"], v["nu"]), "label": "Hertz (eq. 22)"},
         {"x": x, "y": c["p_N"], "label": f"FE, {method}", "style": "points"}],
-        xlabel="x [mm]", ylabel="p_N [N/mm²]", title="Frictionless Hertz: contact pressure")
+        xlabel="x [mm]", ylabel="p_N [N/mm²]", title="Frictionless Hertz: contact pressure",
+        xlim=(0, 1.5 * an["a"]))
     if "R" in sensitivities:
         xs = np.linspace(0, 0.995 * an["a"], 400)
         plots.curves(out / "sensitivity.png", [
@@ -174,7 +175,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
              "label": "analytical"},
             {"x": x, "y": c["dp_N_dR"], "label": "FE, DDM", "style": "points"}],
             xlabel="x [mm]", ylabel="Dp_N/DR [N/mm³]",
-            title="Sensitivity of the pressure to the cylinder radius")
+            title="Sensitivity of the pressure to the cylinder radius", xlim=(0, 1.5 * an["a"]))
 
     summary = {
         "params": v,
