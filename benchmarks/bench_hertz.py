@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import resource
 import time
 from pathlib import Path
 
@@ -71,6 +72,7 @@ def run(size: str, solver: str) -> dict:
         "solve_with_3_sensitivities_s": t_solve_s,
         "ddm_shared_factorization_s": inc.timing["factorization"],
         "ddm_per_parameter_s": per_param, "ddm_per_parameter_over_solve": per_param / t_solve,
+        "peak_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
 

@@ -28,16 +28,11 @@ def _neg_part(x):
 
 
 @dataclass(frozen=True)
-class AugmentedLagrangian:
-    """Frictionless Alart-Curnier augmented Lagrangian (paper eqs. 16-21).
-
-    One multiplier lam (<= 0, nominal normal traction) per contact node is a
-    global unknown; displacements and multipliers are solved by one Newton
-    scheme. The converged solution does not depend on ``eps`` (> 0).
-    """
+class _Regularised:
+    """A frictionless method with one regularisation parameter ``eps`` (> 0)."""
 
     eps: Spec = "eps"
-    n_multipliers: int = field(default=1, init=False)
+    _what = "regularisation"
 
     def specs(self):
         return (self.eps,)
@@ -48,7 +43,20 @@ class AugmentedLagrangian:
     def check(self, params):
         e = float(resolve(self.eps, params))
         if not e > 0:
-            raise InputError(f"the augmented-Lagrangian parameter must be positive, got eps={e}")
+            raise InputError(f"the {self._what} parameter must be positive, got eps={e}")
+
+
+@dataclass(frozen=True)
+class AugmentedLagrangian(_Regularised):
+    """Frictionless Alart-Curnier augmented Lagrangian (paper eqs. 16-21).
+
+    One multiplier lam (<= 0, nominal normal traction) per contact node is a
+    global unknown; displacements and multipliers are solved by one Newton
+    scheme. The converged solution does not depend on ``eps`` (> 0).
+    """
+
+    n_multipliers: int = field(default=1, init=False)
+    _what = "augmented-Lagrangian"
 
     def potential(self, x, lam, A, geo, obstacle, cp):
         """A_S l(g, lam), l = (<lam + eps g>_-^2 - lam^2) / (2 eps)  (eq. 17)."""
@@ -72,26 +80,15 @@ class AugmentedLagrangian:
 
 
 @dataclass(frozen=True)
-class Penalty:
+class Penalty(_Regularised):
     """Penalty regularisation (paper eqs. 12-15): a pure displacement method.
 
     The constraint is satisfied only approximately: the penetration is
     p_N / eps, so the solution and its sensitivities depend on eps.
     """
 
-    eps: Spec = "eps"
     n_multipliers: int = field(default=0, init=False)
-
-    def specs(self):
-        return (self.eps,)
-
-    def values(self, params):
-        return {"eps": resolve(self.eps, params)}
-
-    def check(self, params):
-        e = float(resolve(self.eps, params))
-        if not e > 0:
-            raise InputError(f"the penalty parameter must be positive, got eps={e}")
+    _what = "penalty"
 
     def potential(self, x, lam, A, geo, obstacle, cp):
         """A_S eps/2 <g>_-^2  (eq. 13)."""
