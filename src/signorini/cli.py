@@ -2,6 +2,7 @@
 
     signorini hertz --out DIR [--set NAME=VALUE ...] [--refine N] [--method al|penalty]
                     [--finite-strain] [--steps N] [--no-fd]
+    signorini hertz-friction --out DIR [--set NAME=VALUE ...] [--refine N] [--steps N] [--no-fd]
 """
 
 from __future__ import annotations
@@ -32,6 +33,10 @@ def main(argv=None) -> int:
     h.add_argument("--method", choices=["al", "penalty"], default="al")
     h.add_argument("--finite-strain", action="store_true", help="neo-Hookean block, finite kinematics")
     h.add_argument("--no-fd", action="store_true", help="skip the finite-difference check")
+    f = sub.add_parser("hertz-friction", help="frictional plane-strain Hertz benchmark (paper 5.2)")
+    _common(f)
+    f.set_defaults(steps=30)  # a multiple of 3: P1, P2, P3 are increments
+    f.add_argument("--no-fd", action="store_true", help="skip the finite-difference check")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="%(message)s", stream=sys.stderr)
@@ -46,6 +51,16 @@ def main(argv=None) -> int:
                   f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
                   f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
                   f"Newton iterations {s['newton_iterations']}; DDM vs FD {s['ddm_vs_fd_rel_diff']}")
+            print(f"results in {args.out}/")
+        elif args.command == "hertz-friction":
+            from .problems import hertz_friction
+
+            s = hertz_friction.run(args.out, params, refine=args.refine, steps=args.steps,
+                                   fd_check=not args.no_fd)
+            ca = ", ".join(f"{v:.3f}" for v in s["c_over_a"])
+            print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
+                  f"c/a at P1, P2, P3 = {ca}; Newton iterations {sum(s['newton_iterations'])} "
+                  f"in total; DDM vs FD at P3 {s['ddm_vs_fd_rel_diff_P3']}")
             print(f"results in {args.out}/")
     except SignoriniError as e:
         print(f"signorini: error: {e}", file=sys.stderr)

@@ -50,23 +50,27 @@ def reference_gradients(Xe):
     return dNdX, GAUSS_WEIGHTS * detJ
 
 
-def deformation_gradients(ue, Xe):
-    """Plane-strain deformation gradients (4 gauss, 3, 3) and weights (4,)."""
+def displacement_gradients(ue, Xe):
+    """Plane-strain displacement gradients H = du/dX (4 gauss, 3, 3) and weights (4,).
+
+    Materials receive H rather than F = I + H: a small-strain law needs H, and
+    recovering it as F - I would cost ~1e-13 relative accuracy in the residual
+    (a floor that tight Newton tolerances over many small increments hit).
+    """
     dNdX, w = reference_gradients(Xe)
-    H = jnp.einsum("ai,gaj->gij", ue, dNdX)  # (g, 2, 2) displacement gradient
-    F = jnp.zeros((4, 3, 3)).at[:, :2, :2].set(H) + jnp.eye(3)
-    return F, w
+    H = jnp.einsum("ai,gaj->gij", ue, dNdX)  # (g, 2, 2)
+    return jnp.zeros((4, 3, 3)).at[:, :2, :2].set(H), w
 
 
 def element_energy(ue, Xe, material, mp):
-    """Stored energy of one element: sum_g w_g W(F_g).
+    """Stored energy of one element: sum_g w_g W(H_g).
 
     Args:
         ue: (4, 2) nodal displacements. Xe: (4, 2) reference coordinates.
-        material: a material object with ``energy(F, mp)``. mp: its parameter values.
+        material: a material object with ``energy(H, mp)``. mp: its parameter values.
     """
-    F, w = deformation_gradients(ue, Xe)
-    return jnp.sum(w * jax.vmap(lambda f: material.energy(f, mp))(F))
+    H, w = displacement_gradients(ue, Xe)
+    return jnp.sum(w * jax.vmap(lambda h: material.energy(h, mp))(H))
 
 
 def element_residual(ue, Xe, material, mp):
@@ -76,6 +80,6 @@ def element_residual(ue, Xe, material, mp):
 
 def element_stress(ue, Xe, material, mp):
     """Cauchy stress (3, 3) averaged over the Gauss points of one element."""
-    F, w = deformation_gradients(ue, Xe)
-    sig = jax.vmap(lambda f: material.cauchy(f, mp))(F)
+    H, w = displacement_gradients(ue, Xe)
+    sig = jax.vmap(lambda h: material.cauchy(h, mp))(H)
     return jnp.einsum("g,gij->ij", w, sig) / jnp.sum(w)

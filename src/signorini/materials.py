@@ -1,9 +1,9 @@
 """Hyperelastic materials, each defined by its strain-energy density W(F).
 
 A material stores parameter *specs* (see :mod:`signorini.params`) for its
-constants, so E and nu can be design parameters. ``energy(F, mp)`` takes the
-3x3 deformation gradient (plane strain: F33 = 1) and the resolved values
-``mp = material.values(params)``; stresses come from ``jax.grad``.
+constants, so E and nu can be design parameters. ``energy(H, mp)`` takes the
+3x3 displacement gradient H = du/dX (plane strain: H33 = 0; F = I + H) and the
+resolved values ``mp = material.values(params)``; stresses come from ``jax.grad``.
 """
 
 from __future__ import annotations
@@ -13,6 +13,12 @@ from dataclasses import dataclass
 from ._jax import jax, jnp
 from .errors import InputError
 from .params import Spec, resolve
+
+
+def det_minus_one(H):
+    """det(I + H) - 1 = I1(H) + I2(H) + I3(H), without cancellation for small H."""
+    tr = jnp.trace(H)
+    return tr + 0.5 * (tr**2 - jnp.trace(H @ H)) + jnp.linalg.det(H)
 
 
 @dataclass(frozen=True)
@@ -38,8 +44,9 @@ class _Elastic:
         E, nu = mp["E"], mp["nu"]
         return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
 
-    def first_piola(self, F, mp):
-        return jax.grad(self.energy)(F, mp)
+    def first_piola(self, H, mp):
+        """P = dW/dF = dW/dH."""
+        return jax.grad(self.energy)(H, mp)
 
 
 @dataclass(frozen=True)
@@ -48,14 +55,13 @@ class LinearElastic(_Elastic):
 
     finite_strain = False
 
-    def energy(self, F, mp):
+    def energy(self, H, mp):
         mu, lam = self.lame(mp)
-        H = F - jnp.eye(3)
         eps = 0.5 * (H + H.T)
         return mu * jnp.sum(eps * eps) + 0.5 * lam * jnp.trace(eps) ** 2
 
-    def cauchy(self, F, mp):
-        return self.first_piola(F, mp)
+    def cauchy(self, H, mp):
+        return self.first_piola(H, mp)
 
 
 @dataclass(frozen=True)
@@ -68,11 +74,12 @@ class NeoHooke(_Elastic):
 
     finite_strain = True
 
-    def energy(self, F, mp):
+    def energy(self, H, mp):
         mu, lam = self.lame(mp)
-        J = jnp.linalg.det(F)
-        lnJ = jnp.log(J)
-        return 0.5 * mu * (jnp.sum(F * F) - 3.0) - mu * lnJ + 0.5 * lam * lnJ**2
+        lnJ = jnp.log1p(det_minus_one(H))
+        # tr(F^T F) - 3 = 2 tr H + H:H, written so small H loses no digits
+        return 0.5 * mu * (2.0 * jnp.trace(H) + jnp.sum(H * H)) - mu * lnJ + 0.5 * lam * lnJ**2
 
-    def cauchy(self, F, mp):
-        return self.first_piola(F, mp) @ F.T / jnp.linalg.det(F)
+    def cauchy(self, H, mp):
+        F = jnp.eye(3) + H
+        return self.first_piola(H, mp) @ F.T / jnp.linalg.det(F)

@@ -13,6 +13,12 @@ the per-contact-node kernel (gradient of the contact pseudo-potential), both
 ``vmap``-ed. Newton gets the same kernels' Jacobians block by block
 (:meth:`Model.local_tangents`, assembled sparsely), the DDM pseudo-load is a
 JVP of ``residual`` in (params, w_p, state_n) (:mod:`signorini.sensitivity`).
+
+Path dependence (friction, THEORY 1 and 3): ``history_n`` holds, per contact
+surface, the slip coordinates s_n (nc,) of its nodes (None without friction).
+:meth:`Model.update_state` applies the pure update h(w, phi) after each
+converged increment and carries its sensitivity by a JVP; frictionless models
+have no state (``initial_state`` returns None) and run exactly as before.
 """
 
 from __future__ import annotations
@@ -115,6 +121,8 @@ class Model:
 
         self._local = jax.jit(self._local_impl)
         self._residual = jax.jit(self.residual)
+        self._cases = jax.jit(self.cases)
+        self._status = jax.jit(self.contact_status, static_argnums=4)
         self._history_fn = jax.jit(self.history)
         self._history_jvp = jax.jit(jax.vmap(
             lambda w, p, t, wd, e: jax.jvp(lambda w_, p_: self.history(w_, p_, t), (w, p), (wd, e))[1],
@@ -213,16 +221,34 @@ class Model:
             return Linearized(s.contact.obstacle, *Xs)
         return s.contact.obstacle
 
-    def _node_history(self, i: int, state_n):
+    def _node_history(self, i: int, state_n, cases=None):
         """Per-node history input of surface i for ``method.residual``: None, or
-        (s_n (nc,), tangential mask (nc,)) for friction surfaces."""
+        (s_n (nc,), tangential mask (nc,)[, case flags]) for friction surfaces."""
         if self._tangential[i] is None:
             return None
         if state_n is None:
             raise InputError(
                 f"contact surface {self.surfaces[i].contact.edges!r} has friction, which needs the "
                 "history state_n = (w_n, history_n); start from model.initial_state(w, params)")
-        return (state_n[1][i], jnp.asarray(self._tangential[i]))
+        h = (state_n[1][i], jnp.asarray(self._tangential[i]))
+        return h if cases is None else h + (cases[i],)
+
+    def cases(self, w, params, t, state_n):
+        """Case flags of every node of the friction surfaces (None elsewhere),
+        evaluated in their own pass so that one Newton tangent uses one set of
+        flags (see :meth:`signorini.contact.friction.Coulomb.residual`)."""
+        X = self.reference(params)
+        u, lams = self.split(w)
+        out = []
+        for i, s in enumerate(self.surfaces):
+            if self._tangential[i] is None:
+                out.append(None)
+                continue
+            x, lam, _, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
+            h = self._node_history(i, state_n)
+            out.append(jax.vmap(lambda xs, ls, hs, X0, s=s, geo=geo, cp=cp: s.contact.method.cases(
+                xs, ls, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, h, Xs))
+        return tuple(out)
 
     # ---------------------------------------------------------------- history
     def history(self, w, params, t):
@@ -271,7 +297,7 @@ class Model:
         inc.state, inc.state_sens = state, sdot
         return state, sdot
 
-    def residual(self, w, params, t, state_n=None):
+    def residual(self, w, params, t, state_n=None, cases=None):
         """Global residual R (n_dof,) = internal + contact - external forces;
         multiplier rows hold the contact-law equations (paper eqs. 19-20)."""
         p = self.problem
@@ -284,7 +310,7 @@ class Model:
         R = R - self.external_forces(X, params, t)
         for i, s in enumerate(self.surfaces):
             x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
-            h = self._node_history(i, state_n)
+            h = self._node_history(i, state_n, cases)
             method = s.contact.method
             rc = jax.vmap(lambda xs, ls, a, hs, X0: method.residual(
                 xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs),
@@ -292,7 +318,7 @@ class Model:
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
 
-    def _local_impl(self, w, params, t, state_n=None):
+    def _local_impl(self, w, params, t, state_n=None, cases=None):
         """Residual and the Jacobian blocks of every element and contact node."""
         p = self.problem
         X = self.reference(params)
@@ -309,7 +335,7 @@ class Model:
         blocks = [Ke]
         for i, s in enumerate(self.surfaces):
             x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
-            h = self._node_history(i, state_n)
+            h = self._node_history(i, state_n, cases)
             method = s.contact.method
 
             def node(xs, ls, a, hs, X0, s=s, method=method, geo=geo, cp=cp):
@@ -327,7 +353,8 @@ class Model:
 
     def local_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
-        R, blocks = self._local(w, params, t, state_n)
+        cases = self._cases(w, params, t, state_n) if self.has_history else None
+        R, blocks = self._local(w, params, t, state_n, cases)
         return np.asarray(R), [np.asarray(b) for b in blocks]
 
     def block_dofs(self) -> list[np.ndarray]:

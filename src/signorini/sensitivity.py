@@ -37,12 +37,12 @@ class DDM:
         def wp_dot(params, t, e):
             return jax.jvp(lambda p: model.prescribed_values(p, t), (params,), (e,))[1]
 
-        def pseudo(w, params, t, state_n, w_dot, e, state_dot_n):
-            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_)
+        def pseudo(w, params, t, state_n, cases, w_dot, e, state_dot_n):
+            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_, cases)
             return jax.jvp(f, (w, params, state_n), (w_dot, e, state_dot_n))[1]
 
         self._wp_dot = jax.jit(jax.vmap(wp_dot, (None, None, 0)))
-        self._pseudo = jax.jit(jax.vmap(pseudo, (None, None, None, None, 0, 0, 0)))
+        self._pseudo = jax.jit(jax.vmap(pseudo, (None, None, None, None, None, 0, 0, 0)))
 
     def solve(self, factor, w, params, t, state_n=None, state_dot_n=None):
         """Sensitivities dw/dphi (n_names, n_dof) at a converged increment.
@@ -60,7 +60,9 @@ class DDM:
         w_dot = np.zeros((len(self.names), m.n_dof))
         if m.prescribed.size:
             w_dot[:, m.prescribed] = np.asarray(self._wp_dot(params, t, e))
-        P = np.asarray(self._pseudo(w, params, t, state_n, jnp.asarray(w_dot), e, state_dot_n))
+        # friction: the branch of every node fixed as in the converged tangent
+        cases = m._cases(w, params, t, state_n) if getattr(m, "has_history", False) else None
+        P = np.asarray(self._pseudo(w, params, t, state_n, cases, jnp.asarray(w_dot), e, state_dot_n))
         t1 = time.perf_counter()
         w_dot[:, m.free] = -factor.solve(np.ascontiguousarray(P[:, m.free].T)).reshape(m.free.size, -1).T
         t2 = time.perf_counter()

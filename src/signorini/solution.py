@@ -108,7 +108,8 @@ class Solution:
             e = unit_tangents(self._jp, self.names)
             tang = jax.tree_util.tree_map(lambda v: v[k], (jnp.asarray(np.stack(
                 [inc.sens[n] for n in self.names])), e, sdot))
-            _, d = jax.jvp(lambda w, p, st: m.residual(w, p, inc.t, st)[m.prescribed],
+            cases = m._cases(jnp.asarray(inc.w), self._jp, inc.t, state)
+            _, d = jax.jvp(lambda w, p, st: m.residual(w, p, inc.t, st, cases)[m.prescribed],
                            (jnp.asarray(inc.w), self._jp, state), tang)
             r[m.prescribed] = -np.asarray(d)
             return r.reshape(-1, 2)
@@ -190,8 +191,8 @@ class Solution:
         if hasattr(s.contact.method, "status"):  # friction: open / stick / slip, slip increment
             from .contact.friction import STATUS_NAMES
 
-            st, gt = m.contact_status(jnp.asarray(self._inc(i).w), self._jp, self._inc(i).t,
-                                      self.state_before(i)[0], surface)
+            st, gt = m._status(jnp.asarray(self._inc(i).w), self._jp, self._inc(i).t,
+                               self.state_before(i)[0], surface)
             out["status"] = np.array([STATUS_NAMES[k] for k in np.asarray(st)])
             out["slip"] = np.asarray(gt)
         return out

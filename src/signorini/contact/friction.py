@@ -11,7 +11,7 @@ the friction-disc radius is rho = mu <lam^_N>_- and the pseudo-potential is
     l = (<lam^_N>_-^2 - lam_N^2) / (2 eps_N)
         + (lam^_T^2 - lam_T^2 - dist(lam^_T, [-rho, rho])^2) / (2 eps_T)
 
-(dist(y, [-rho, rho]) = <|y| - rho>, so this is THEORY eq. 3.1). The node
+(dist(y, [-rho, rho]) = <|y| - rho>: the pseudo-potential of THEORY 3). The node
 residual is the gradient of A_S l in (x_S, lam) *at fixed rho*; rho is computed
 outside that gradient and passed in, so the Jacobian taken by
 :class:`~signorini.model.Model` (``jax.jacfwd`` of :meth:`Coulomb.residual`)
@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 from .._jax import jax, jnp
 from ..errors import InputError
 from ..params import Spec, resolve
-from .methods import _neg_part
 
 #: Integer codes returned by :meth:`Coulomb.status`.
 OPEN, STICK, SLIP = 0, 1, 2
@@ -88,11 +87,11 @@ class Coulomb:
     # ------------------------------------------------------------- kinematics
     @staticmethod
     def _hist(hist):
+        """Per-node input built by the model: (s_n, tangential[, case flags])."""
         if hist is None:
             raise InputError("Coulomb friction needs the slip history of the contact nodes; "
                              "call Model.residual with state_n = model.initial_state(...) or later")
-        s_n, tangential = hist
-        return s_n, tangential
+        return hist[0], hist[1], (hist[2] if len(hist) > 2 else None)
 
     def augmented(self, x, lam, geo, obstacle, cp, s_n):
         """(lam^_N, lam^_T, g_N, g_T) of one node."""
@@ -101,43 +100,49 @@ class Coulomb:
         return lam[0] + cp["eps_n"] * g_n, lam[1] + cp["eps_t"] * g_t, g_n, g_t
 
     def cases(self, x, lam, geo, obstacle, cp, hist):
-        """(rho, closed, stick, sign): friction-disc radius rho = mu <lam^_N>_- and
-        the case flags of one node, from its current values.
-
-        The flags are computed once here and passed to :meth:`potential`, behind an
-        XLA optimisation barrier: every slip node starts an increment exactly on
-        the stick/slip boundary |lam^_T| = rho, and if the compiler re-evaluated
-        the comparison separately for the forces and for the multiplier rows,
-        round-off could pick different branches for them (a singular tangent)."""
-        s_n, _ = self._hist(hist)
+        """Case flags (closed, stick, positive) of one node at (x, lam):
+        closed = lam^_N <= 0, stick = closed & mu > 0 & |lam^_T| <= rho,
+        positive = lam^_T >= 0 (the sign of the slip direction)."""
+        s_n = self._hist(hist)[0]
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
-        rho = -cp["mu"] * _neg_part(lhn)
         closed = lhn <= 0.0
+        rho = -cp["mu"] * jnp.where(closed, lhn, 0.0)
         stick = closed & (cp["mu"] > 0.0) & (jnp.abs(lht) <= rho)
-        flags = jax.lax.optimization_barrier((closed, stick, lht >= 0.0))
-        return (rho, *flags)
+        return closed, stick, lht >= 0.0
 
     # -------------------------------------------------------- pseudo-potential
-    def potential(self, x, lam, A, geo, obstacle, cp, hist, case):
+    def potential(self, x, lam, A, geo, obstacle, cp, hist, rho, case):
         """A_S l(x, lam; rho) with the disc radius rho and the case flags held
-        fixed (``case`` from :meth:`cases`; THEORY 3)."""
-        s_n, tangential = self._hist(hist)
-        rho, closed, stick, positive = case
-        eps_n, eps_t = cp["eps_n"], cp["eps_t"]
+        fixed (THEORY 3)."""
+        s_n, tangential, _ = self._hist(hist)
+        closed, stick, positive = case
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
-        l_n = (jnp.where(closed, lhn, 0.0) ** 2 - lam[0] ** 2) / (2.0 * eps_n)
+        l_n = (jnp.where(closed, lhn, 0.0) ** 2 - lam[0] ** 2) / (2.0 * cp["eps_n"])
         tau = jnp.where(stick, lht, jnp.where(positive, rho, -rho))  # proj_[-rho, rho](lam^_T)
-        l_t = (lht**2 - lam[1] ** 2 - (lht - tau) ** 2) / (2.0 * eps_t)
-        l_fixed = -lam[1] ** 2 / (2.0 * eps_t)  # no friction: lam_T = 0
+        l_t = (lht**2 - lam[1] ** 2 - (lht - tau) ** 2) / (2.0 * cp["eps_t"])
+        l_fixed = -lam[1] ** 2 / (2.0 * cp["eps_t"])  # no friction DOF: lam_T = 0
         return A * (l_n + jnp.where(tangential > 0, l_t, l_fixed))
 
     def residual(self, x, lam, A, geo, obstacle, cp, hist):
         """(4,): contact force on x_S, then R_lamN, R_lamT (THEORY 3).
 
-        rho is evaluated here, outside the inner gradient, so that the caller's
-        Jacobian of this function includes d rho / d(x, lam_N)."""
-        case = self.cases(x, lam, geo, obstacle, cp, hist)
-        fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp, hist, case)
+        rho = mu <lam^_N>_- is evaluated here, outside the inner gradient, so the
+        caller's Jacobian of this function includes d rho / d(x, lam_N).
+
+        The case flags come from ``hist`` when the model supplies them (computed
+        in a separate pass, :meth:`cases`), else from :meth:`cases` here. Every
+        slip node starts an increment exactly on the stick/slip boundary
+        |lam^_T| = rho; inside one compiled kernel XLA may re-evaluate that
+        comparison separately for the forces and for the multiplier rows, and
+        round-off can then pick different branches for them (a singular
+        tangent). Flags passed in as data cannot disagree."""
+        case = self._hist(hist)[2]
+        if case is None:
+            case = self.cases(x, lam, geo, obstacle, cp, hist)
+        lhn = lam[0] + cp["eps_n"] * obstacle.gap(x, geo)
+        rho = -cp["mu"] * jnp.where(case[0], lhn, 0.0)
+        fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp, hist,
+                                                           rho, case)
         return jnp.concatenate([fx, fl])
 
     # ------------------------------------------------------------ post-process
@@ -150,7 +155,7 @@ class Coulomb:
         """OPEN (0), STICK (1) or SLIP (2) of a node, by the branch the residual
         takes at (x, lam). A closed node without friction DOF (prescribed
         tangential displacement) cannot slip and counts as STICK."""
-        _, closed, stick, _ = self.cases(x, lam, geo, obstacle, cp, hist)
+        closed, stick, _ = self.cases(x, lam, geo, obstacle, cp, hist)
         stick = stick | (self._hist(hist)[1] <= 0)
         return jnp.where(closed, jnp.where(stick, STICK, SLIP), OPEN)
 

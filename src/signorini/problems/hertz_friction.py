@@ -1,0 +1,184 @@
+"""Plane-strain frictional Hertz problem (paper 5.2, THEORY 8).
+
+The half model of :mod:`signorini.problems.hertz` (rigid cylinder of radius R
+on an elastic block, uniform pressure with resultant P/2 on the bottom,
+symmetry u_x = 0 on x = 0) with Coulomb friction on the top face, R = 10,
+mu = 0.3, E = 100, nu = 0.3. The force grows proportionally to P = 1.5 in
+``steps`` equal increments (a multiple of 3, so that P1 = 0.5, P2 = 1.0 and
+P3 = 1.5 are increments). The mesh's fine zone is sized from the contact
+half-width a at P3.
+
+Friction makes the problem path-dependent; the contact, stick and slip zones
+grow self-similarly, so c/a (stick-zone over contact half-width) is constant
+and p_N / p0_i against x / a_i is the same curve at every load. The
+symmetry line x = 0 is a stick line (its node has no friction multiplier:
+its tangential displacement is prescribed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..contact import Contact, Coulomb
+from ..errors import InputError
+from . import hertz
+
+DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 1.5, "R": 10.0, "mu": 0.3}
+LOADS = (1.0 / 3.0, 2.0 / 3.0, 1.0)  # P_i / P at the three reported loads
+
+
+def hertz_friction_problem(params: dict | None = None, *, refine: int = 0, n_fine: int = 24,
+                           size: float = 20.0, finite_strain: bool = False):
+    """The frictional Hertz half model (parameters E, nu, P, R, mu, eps, eps_t, bump).
+
+    ``eps`` defaults to E / h (h = contact cell size) and ``eps_t`` to ``eps``.
+    Mesh and material arguments as in :func:`signorini.problems.hertz.hertz_problem`
+    (``finite_strain``: neo-Hookean block with finite contact kinematics).
+    """
+    values = dict(DEFAULTS)
+    values.update(params or {})
+    if not values["mu"] >= 0:
+        raise InputError(f"the friction coefficient must be >= 0, got mu={values['mu']}")
+    base = {k: v for k, v in values.items() if k not in ("mu", "eps_t")}
+    pb = hertz.hertz_problem(base, refine=refine, n_fine=n_fine, size=size,
+                             finite_strain=finite_strain)
+    full = dict(pb.params, mu=values["mu"], eps_t=values.get("eps_t", pb.params["eps"]))
+    c = pb.contact[0]
+    return dataclasses.replace(pb, params=full, contact=(
+        Contact(c.obstacle, c.edges, Coulomb(mu="mu", eps_n="eps", eps_t="eps_t")),))
+
+
+def zones(contact: dict) -> tuple[float, float]:
+    """(a, c): largest reference x of a closed node and of a sticking node."""
+    x = contact["x_ref"][:, 0]
+    closed = contact["status"] != "open"
+    stick = contact["status"] == "stick"
+    return (float(x[closed].max()) if closed.any() else 0.0,
+            float(x[stick].max()) if stick.any() else 0.0)
+
+
+def load_increments(solution) -> list[int]:
+    """Indices of the increments at P1, P2, P3 (t = 1/3, 2/3, 1)."""
+    ts = np.array([inc.t for inc in solution.increments])
+    out = []
+    for target in LOADS:
+        k = int(np.argmin(np.abs(ts - target)))
+        if abs(ts[k] - target) > 1e-9:
+            raise InputError(f"no increment ends at t = {target:.6g}; use a number of steps "
+                             "that is a multiple of 3")
+        out.append(k)
+    return out
+
+
+def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd_check: bool = True,
+        sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5) -> dict:
+    """Solve the frictional Hertz benchmark with path-dependent DDM sensitivities.
+
+    Writes ``contact_P{1,2,3}.csv`` (``x_ref, x, p_N, p_T, dp_N_dR, dp_T_dR, status``),
+    ``pressure.png`` / ``friction.png`` (paper Fig. 5), ``normalised.png`` /
+    ``normalised_sensitivity.png`` (Fig. 6) and ``summary.json`` into ``out``.
+    Returns the summary. The FD check re-runs the whole load path at phi +- h,
+    h = ``fd_step`` max(|phi|, 1): smaller steps are limited by the Newton
+    tolerance (error ~ rtol / h), much larger ones change stick/slip states.
+    """
+    import time
+    from pathlib import Path
+
+    from .. import io, plots
+    from ..newton import NewtonOptions
+    from ..sensitivity import finite_difference
+    from ..solve import solve
+
+    if steps < 3 or steps % 3:
+        raise InputError(f"--steps must be a positive multiple of 3 (P1, P2, P3 = P/3, 2P/3, P "
+                         f"must be increments), got {steps}")
+    sensitivities = list(dict.fromkeys(["R", *sensitivities]))
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    # rtol 1e-10: the linear-elastic residual has a round-off floor ~1e-13 (relative
+    # to the element forces), too close to 1e-11 x the small early loads
+    options = options or NewtonOptions(rtol=1e-10)
+    pb = hertz_friction_problem(params, refine=refine)
+    v = pb.params
+    h = hertz.fine_cell_size(pb)
+    t0 = time.perf_counter()
+    sol = solve(pb, steps=steps, sensitivities=sensitivities, options=options)
+    t_solve = time.perf_counter() - t0
+
+    levels = []
+    for i, k in enumerate(load_increments(sol), start=1):
+        P = v["P"] * sol.increments[k].t
+        an = hertz.analytical(P, v["R"], v["E"], v["nu"])
+        c = sol.contact(k)
+        a_fe, c_fe = zones(c)
+        cols = {"x_ref": c["x_ref"][:, 0], "x": c["x"][:, 0], "p_N": c["p_N"], "p_T": c["p_T"] + 0.0,
+                "dp_N_dR": c["dp_N_dR"], "dp_T_dR": c["dp_T_dR"] + 0.0, "status": c["status"]}
+        io.write_csv(out / f"contact_P{i}.csv", cols)
+        levels.append({"P": P, "increment": k, "a": a_fe, "c": c_fe, "c_over_a": c_fe / a_fe,
+                       "a_hertz": an["a"], "p0_hertz": an["p0"], "p0": float(c["p_N"].max()),
+                       "n_stick": int((c["status"] == "stick").sum()),
+                       "n_slip": int((c["status"] == "slip").sum()), "contact": c})
+    _figures(out, levels, v, plots)
+
+    ddm_fd = {}
+    if fd_check:
+        k3 = levels[-1]["increment"]
+        inner = levels[-1]["contact"]["x_ref"][:, 0] < 0.9 * levels[-1]["a_hertz"]
+        for n in ("R", "mu"):
+            if n not in sensitivities:
+                continue
+
+            def q(s, k3=k3):
+                c = s.contact(k3)
+                return np.concatenate([c["p_N"][inner], c["p_T"][inner]])
+
+            fd = finite_difference(pb, n, q, steps=steps, options=options, rel_step=fd_step)
+            c3 = levels[-1]["contact"]
+            ddm = np.concatenate([c3[f"dp_N_d{n}"][inner], c3[f"dp_T_d{n}"][inner]])
+            ddm_fd[n] = float(np.max(np.abs(ddm - fd)) / np.max(np.abs(ddm)))
+
+    summary = {
+        "params": v,
+        "steps": steps,
+        "mesh": {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "dofs": int(sol.model.n_dof),
+                 "contact_cell_size": h},
+        "loads": [{k: val for k, val in lv.items() if k != "contact"} for lv in levels],
+        "c_over_a": [lv["c_over_a"] for lv in levels],
+        "newton_iterations": sol.newton_iterations,
+        "newton_residuals": [inc.newton.residuals for inc in sol.increments],
+        "ddm_vs_fd_rel_diff_P3": ddm_fd,
+        "fd_relative_step": fd_step,
+        "time_solve_s": t_solve,
+    }
+    io.write_json(out / "summary.json", summary)
+    return summary
+
+
+def _figures(out, levels, v, plots):
+    """Paper Fig. 5 (p_N, p_T at P1..P3) and Fig. 6 (normalised by p0_i, a_i, p0_i/R)."""
+    def series(key, scale=None):
+        res = []
+        for i, lv in enumerate(levels, start=1):
+            c = lv["contact"]
+            m = c["x_ref"][:, 0] < 1.6 * lv["a_hertz"]
+            x, y = c["x_ref"][m, 0], c[key][m]
+            if scale is not None:
+                x, y = x / lv["a_hertz"], y / scale(lv)
+            res.append({"x": x, "y": y, "label": f"{key}, P{i} = {lv['P']:.2g}",
+                        "style": "line" if scale is None else "points"})
+        return res
+
+    plots.curves(out / "pressure.png", series("p_N"), xlabel="x [mm]", ylabel="p_N [N/mm²]",
+                 title="Frictional Hertz: contact pressure")
+    plots.curves(out / "friction.png", series("p_T"), xlabel="x [mm]", ylabel="p_T [N/mm²]",
+                 title="Frictional Hertz: friction stress")
+    p0 = lambda lv: lv["p0_hertz"]
+    plots.curves(out / "normalised.png", series("p_N", p0) + series("p_T", p0),
+                 xlabel="x / a_i", ylabel="p / p0_i", title="Normalised tractions (self-similar)")
+    p0R = lambda lv: lv["p0_hertz"] / v["R"]
+    plots.curves(out / "normalised_sensitivity.png",
+                 series("dp_N_dR", p0R) + series("dp_T_dR", p0R),
+                 xlabel="x / a_i", ylabel="(R / p0_i) Dp/DR",
+                 title="Normalised sensitivities to the cylinder radius")

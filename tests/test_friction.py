@@ -1,0 +1,262 @@
+"""Coulomb friction (Alart-Curnier AL, THEORY 3), path-dependent DDM and the
+frictional Hertz benchmark (paper 5.2)."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import signorini as sg
+from signorini.cli import main
+from signorini.problems import hertz, hertz_friction as hf
+
+TIGHT = sg.NewtonOptions(rtol=1e-11)
+MU = 0.3  # paper 5.2
+STEPS = 6  # P1, P2, P3 = increments 1, 3, 5
+
+
+@pytest.fixture(scope="module")
+def small():
+    """Small frictional Hertz (12 cells across 1.5 a, block 10 a): open, stick and
+    slip nodes at every load."""
+    pb = hf.hertz_friction_problem(n_fine=12, size=10)
+    sol = sg.solve(pb, steps=STEPS, sensitivities=["R", "mu", "E", "eps", "eps_t"], options=TIGHT)
+    return pb, sol
+
+
+def states(c):
+    return {k: int((c["status"] == k).sum()) for k in ("open", "stick", "slip")}
+
+
+def test_coulomb_law_at_every_node(small):
+    """|p_T| <= mu p_N; slip: p_T = +-mu p_N opposing the slip increment g_T
+    (p_T is the traction on the body along t', THEORY 0); stick: g_T = 0."""
+    _, sol = small
+    for k in range(STEPS):
+        c = sol.contact(k)
+        pmax = c["p_N"].max()
+        assert all(n > 0 for n in states(c).values()), states(c)
+        assert np.all(np.abs(c["p_T"]) <= MU * c["p_N"] + 1e-10 * pmax)
+        slip = c["status"] == "slip"
+        assert np.allclose(np.abs(c["p_T"][slip]), MU * c["p_N"][slip], rtol=0, atol=1e-10 * pmax)
+        assert np.all(c["p_T"][slip] * c["slip"][slip] < 0)  # friction opposes the slip
+        stick = c["status"] == "stick"
+        assert np.max(np.abs(c["slip"][stick])) <= 1e-12 * np.abs(c["slip"]).max()
+        op = c["status"] == "open"
+        assert np.max(np.abs(np.r_[c["p_N"][op], c["p_T"][op]])) <= 1e-14 * pmax
+
+
+@pytest.mark.parametrize("case", ["stick", "slip", "open"])
+def test_tangent_is_the_theory_jacobian(case):
+    """jacfwd of Coulomb.residual = THEORY 3 explicit blocks (a)-(c) for a flat die
+    (G_N = n', G_T = t', no curvature), including d rho / d(x, lam_N) in slip."""
+    A, en, et, mu = 0.7, 3.0, 2.0, 0.4
+    meth, die = sg.Coulomb(), sg.Line(point=(0.0, 0.0), normal_vector=(0.0, 1.0))
+    geo = die.geometry({}, 0.0)
+    cp = {"mu": mu, "eps_n": en, "eps_t": et}
+    GN, GT = np.array([0.0, 1.0]), np.array([-1.0, 0.0])  # n', t' = (-n2, n1)
+    x = np.array([-0.5, -0.1])  # g_N = -0.1, s = 0.5
+    lam = {"stick": [-1.0, 0.1], "slip": [-1.0, 0.2], "open": [0.5, 0.3]}[case]
+    s_n = {"stick": 0.475, "slip": 0.0, "open": 0.0}[case]  # g_T = 0.025 / 0.5
+    K = np.asarray(jax.jacfwd(lambda v: meth.residual(v[:2], v[2:], A, geo, die, cp, (s_n, 1.0)))(
+        jnp.asarray(np.r_[x, lam])))
+    lhn, lht = lam[0] + en * (-0.1), lam[1] + et * (0.5 - s_n)
+    E = np.zeros((4, 4))
+    if case == "open":
+        assert lhn > 0
+        E[2, 2], E[3, 3] = -A / en, -A / et
+    elif case == "stick":
+        assert abs(lht) <= -mu * lhn
+        E[:2, :2] = A * (en * np.outer(GN, GN) + et * np.outer(GT, GT))
+        E[:2, 2], E[:2, 3], E[2, :2], E[3, :2] = A * GN, A * GT, A * GN, A * GT
+    else:
+        sig = np.sign(lht)
+        assert abs(lht) > -mu * lhn and lhn < 0
+        E[:2, :2] = A * (en * np.outer(GN, GN) - mu * sig * en * np.outer(GT, GN))
+        E[:2, 2] = A * (GN - mu * sig * GT)
+        E[2, :2] = A * GN
+        E[3, :2] = -A * mu * sig * en / et * GN
+        E[3, 2], E[3, 3] = -A * mu * sig / et, -A / et
+    assert np.allclose(K, E, rtol=0, atol=1e-14), (K, E)
+
+
+def test_symmetry_node_has_no_friction_multiplier(small):
+    """x = 0: u_x prescribed, so g_T = 0 identically; lam_T = 0 there (THEORY 3)."""
+    _, sol = small
+    s = sol.model.surfaces[0]
+    X = sol.reference()[s.nodes]
+    mask = sol.model._tangential[0]
+    assert np.array_equal(mask == 0, X[:, 0] == 0)
+    assert np.all(sol.multipliers()[X[:, 0] == 0, 1] == 0)
+    assert sol.contact()["status"][0] == "stick"  # the symmetry line is a stick line
+
+
+def _block(loads=(), fixed=()):
+    """Elastic block 2 x 1 (8 x 4 cells) on a rigid flat die y = 0, pressed by a
+    normal force N = 1 in the first half of the load path (t <= 1/2)."""
+    mesh = sg.rectangle(np.linspace(0, 2, 9), np.linspace(0, 1, 5))
+    params = dict(E=100.0, nu=0.3, N=1.0, mu=MU, eps=100.0, eps_t=100.0, T=1.2 * MU, D=0.05)
+    die = sg.Line(point=(0.0, 0.0), normal_vector=(0.0, 1.0))
+    normal = sg.Pressure("top", "N", resultant=True, ramp=lambda t: jnp.minimum(2 * t, 1.0))
+    return sg.Problem(mesh=mesh, material=sg.LinearElastic(), params=params, loads=(normal, *loads),
+                      fixed=fixed, contact=(sg.Contact(die, "bottom", sg.Coulomb()),))
+
+
+def test_block_force_controlled_sliding_starts_at_mu_N():
+    """Tangential force T on the top grows to 1.2 mu N: static equilibrium exists
+    only while T <= mu N, so Newton stops within one increment of T = mu N; the
+    friction resultant balances T before that."""
+    ramp = lambda t: jnp.maximum(0.0, 2 * t - 1)
+    pb = _block(loads=(sg.Traction("top", ("T", 0.0), resultant=True, ramp=ramp),))
+    with pytest.raises(sg.ConvergenceError) as err:
+        sg.solve(pb, steps=20, options=sg.NewtonOptions(rtol=1e-12, max_cuts=0))
+    sol = err.value.partial
+    dT = 1.2 * MU * 2 / 20  # tangential load increment
+    T = [1.2 * MU * max(0.0, 2 * inc.t - 1) for inc in sol.increments]
+    assert T[-1] < MU <= T[-1] + dT  # N = 1
+    for k, Tk in enumerate(T):
+        c = sol.contact(k)
+        assert np.isclose(np.sum(c["area"] * c["p_N"]), min(2 * sol.increments[k].t, 1), rtol=1e-10)
+        assert np.isclose(np.sum(c["area"] * c["p_T"]), Tk, rtol=1e-10, atol=1e-12)
+        assert (c["status"] == "stick").any()  # not sliding as a whole yet
+
+
+def test_block_dragged_sideways_slides_at_mu_N():
+    """Top displaced sideways (after the normal load): the tangential reaction grows,
+    reaches mu N within one increment and stays at mu N while the block slides."""
+    ramp = lambda t: jnp.maximum(0.0, 2 * t - 1)
+    pb = _block(fixed=(sg.Fixed("top", 0, "D", ramp=ramp),))
+    sol = sg.solve(pb, steps=20, options=sg.NewtonOptions(rtol=1e-12))
+    top = pb.mesh.node_set("top")
+    F = np.array([-sol.reactions(k)[top, 0].sum() for k in range(20)])  # friction force on the body
+    sliding = []
+    for k in range(20):
+        c = sol.contact(k)
+        closed = c["status"] != "open"
+        sliding.append(bool(np.all(c["status"][closed] == "slip")))
+        assert np.isclose(np.sum(c["area"] * c["p_N"]), min(2 * sol.increments[k].t, 1), rtol=1e-10)
+    first = sliding.index(True)
+    assert all(sliding[first:]) and first > 10  # slides only in the tangential phase, then for good
+    assert np.allclose(np.abs(F[first:]), MU, rtol=1e-10)  # mu N, N = 1
+    assert np.all(np.abs(F[:first]) < MU)
+    assert np.abs(F[first - 1]) + np.max(np.diff(np.abs(F[:first]))) >= MU  # within one increment
+    print("tangential reaction / N:", np.round(np.abs(F), 6))
+
+
+def test_path_dependent_ddm_equals_central_fd_of_the_load_path(small):
+    """DDM (paper eq. 6 with history terms) vs central FD of the whole load path
+    (re-run with phi +- h, same increments, rtol 1e-11), h = 1e-6 max(|phi|, 1):
+    all unknowns (displacements and both multipliers) at an intermediate and at
+    the last increment, to 1e-5 relative."""
+    pb, sol = small
+    ks = [2, STEPS - 1]
+    for k in ks:
+        assert all(n > 0 for n in states(sol.contact(k)).values())
+    for name in ("R", "mu", "E"):
+        fd = sg.finite_difference(pb, name, lambda s: np.stack([s.increments[k].w for k in ks]),
+                                  steps=STEPS, options=TIGHT, rel_step=1e-6)
+        for j, k in enumerate(ks):
+            ddm = sol.w_sensitivity(name, k)
+            err = np.max(np.abs(ddm - fd[j])) / np.max(np.abs(ddm))
+            print(f"DDM vs FD, {name}, increment {k}: {err:.2e}")
+            assert err <= 1e-5
+
+
+def test_solution_and_sensitivities_independent_of_eps(small):
+    """THEORY 3: the converged solution does not depend on eps_N, eps_T, and the
+    DDM sensitivities with respect to them are numerically zero."""
+    pb, sol = small
+    e = pb.params["eps"]
+    for eps, eps_t in ((10 * e, 0.1 * e), (0.2 * e, 5 * e)):
+        other = sg.solve(pb.with_params(eps=eps, eps_t=eps_t), steps=STEPS, options=TIGHT)
+        for a, b in zip(sol.increments, other.increments):
+            assert np.linalg.norm(b.w - a.w) <= 1e-8 * np.linalg.norm(a.w)
+    w = sol.increments[-1].w
+    for name in ("eps", "eps_t"):
+        for k in range(STEPS):
+            assert np.linalg.norm(sol.w_sensitivity(name, k)) * e <= 1e-8 * np.linalg.norm(w)
+
+
+def test_mu_zero_reproduces_frictionless_element():
+    """Coulomb with mu = 0 gives the AugmentedLagrangian solution and sensitivities."""
+    fric = hf.hertz_friction_problem({"mu": 0.0}, n_fine=12, size=10)
+    fl = hertz.hertz_problem({k: fric.params[k] for k in ("E", "nu", "P", "R")}, n_fine=12, size=10)
+    a = sg.solve(fric, steps=2, sensitivities=["R", "E"], options=TIGHT)
+    b = sg.solve(fl, steps=2, sensitivities=["R", "E"], options=TIGHT)
+    for k in range(2):
+        assert np.allclose(a.displacement(k), b.displacement(k), rtol=0,
+                           atol=1e-10 * np.abs(b.displacement(k)).max())
+        ca, cb = a.contact(k), b.contact(k)
+        assert np.allclose(ca["p_N"], cb["p_N"], rtol=0, atol=1e-10 * cb["p_N"].max())
+        assert np.max(np.abs(ca["p_T"])) <= 1e-14 * cb["p_N"].max()
+        for n in ("R", "E"):
+            d = cb[f"dp_N_d{n}"]
+            assert np.allclose(ca[f"dp_N_d{n}"], d, rtol=0, atol=1e-9 * np.abs(d).max())
+
+
+def test_newton_quadratic_with_finite_strain_friction():
+    """Neo-Hooke block, finite contact kinematics, friction: the exact (unsymmetric)
+    tangent gives a quadratic step r_{k+1} <= r_k^2 / r_0 near the end of every increment."""
+    pb = hf.hertz_friction_problem(n_fine=12, size=10, finite_strain=True)
+    sol = sg.solve(pb, steps=STEPS, options=TIGHT)
+    assert all(n > 0 for n in states(sol.contact()).values())
+    for inc in sol.increments:
+        r = inc.newton.residuals
+        print("Newton |R|:", " ".join(f"{v:.2e}" for v in r))
+        pairs = list(zip(r[-4:-1], r[-3:]))
+        assert any(a <= 0.1 * r[0] and b <= a * a / r[0] for a, b in pairs), r
+
+
+def test_frictional_hertz_self_similar():
+    """Paper 5.2 (default mesh, 6 increments): c/a the same at P1, P2, P3 within one
+    element spacing h (|c_i - kappa a_i| <= h for one kappa), and p_N / p0_i against
+    x / a_i the same curve within 2 % of p0 (eq. 22 for p0_i, a_i)."""
+    pb = hf.hertz_friction_problem()
+    h = hertz.fine_cell_size(pb)
+    sol = sg.solve(pb, steps=STEPS, options=sg.NewtonOptions(rtol=1e-10))
+    a, c, curves = [], [], []
+    for k in hf.load_increments(sol):
+        cont = sol.contact(k)
+        ak, ck = hf.zones(cont)
+        a.append(ak)
+        c.append(ck)
+        an = hertz.analytical(pb.params["P"] * sol.increments[k].t, 10.0, 100.0, 0.3)
+        curves.append((cont["x_ref"][:, 0] / an["a"], cont["p_N"] / an["p0"]))
+    a, c = np.array(a), np.array(c)
+    kappa = np.linspace(0.2, 1.0, 8001)
+    dev = min(np.max(np.abs(c - kap * a)) for kap in kappa)
+    print("c/a at P1, P2, P3:", np.round(c / a, 3), f"minimax deviation {dev / h:.2f} h")
+    assert dev <= h
+    x3, p3 = curves[2]
+    for x, p in curves[:2]:
+        m = x < 1.0
+        assert np.max(np.abs(p[m] - np.interp(x[m], x3, p3))) <= 0.02
+
+
+def test_errors_are_clear(small):
+    pb, sol = small
+    with pytest.raises(sg.InputError, match="friction coefficient"):
+        sg.solve(pb.with_params(mu=-0.1))
+    with pytest.raises(sg.InputError, match="history"):
+        jax.eval_shape(lambda w: sol.model.residual(w, sol._jp, 1.0), jnp.zeros(sol.model.n_dof))
+    with pytest.raises(sg.InputError, match="multiple of 3"):
+        hf.run("/nonexistent/never-written", steps=4)
+
+
+def test_hertz_friction_command(tmp_path, capsys):
+    out = tmp_path / "hf"
+    assert main(["hertz-friction", "--out", str(out), "-q", "--steps", "3", "--no-fd",
+                 "--set", "mu=0.5"]) == 0
+    for i in (1, 2, 3):
+        head = (out / f"contact_P{i}.csv").read_text().splitlines()[0]
+        assert head == "x_ref,x,p_N,p_T,dp_N_dR,dp_T_dR,status"
+    for f in ("pressure.png", "friction.png", "normalised.png", "normalised_sensitivity.png"):
+        assert (out / f).stat().st_size > 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["params"]["mu"] == 0.5 and len(s["newton_iterations"]) == 3
+    assert all(0 < ca < 1 for ca in s["c_over_a"])
+    assert "c/a" in capsys.readouterr().out
+    assert main(["hertz-friction", "--out", str(out), "-q", "--steps", "4"]) == 2
+    assert "multiple of 3" in capsys.readouterr().err
