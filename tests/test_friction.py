@@ -254,6 +254,12 @@ def test_hertz_friction_command(tmp_path, capsys):
         assert head == "x_ref,x,p_N,p_T,dp_N_dR,dp_T_dR,status"
     for f in ("pressure.png", "friction.png", "normalised.png", "normalised_sensitivity.png"):
         assert (out / f).stat().st_size > 0
+    import meshio
+
+    vtu = meshio.read(out / "hertz_friction_P3.vtu")
+    status = vtu.point_data["contact_status"]
+    assert {1.0, 2.0} <= set(np.unique(status))  # stick and slip nodes at P3
+    assert "dp_T_dR" in vtu.point_data and "slip_increment" in vtu.point_data
     s = json.loads((out / "summary.json").read_text())
     assert s["params"]["mu"] == 0.5 and len(s["newton_iterations"]) == 3
     assert all(0 < ca < 1 for ca in s["c_over_a"])

@@ -1,7 +1,9 @@
 """The ``signorini`` command.
 
     signorini hertz --out DIR [--set NAME=VALUE ...] [--refine N] [--method al|penalty]
-                    [--finite-strain] [--steps N] [--no-fd]
+                    [--finite-strain] [--steps N] [--no-fd] [--solver superlu|pardiso|umfpack]
+    signorini hertz-friction --out DIR [--set NAME=VALUE ...] [--refine N] [--steps 3k]
+                    [--no-fd] [--solver ...]
     signorini hertz-friction --out DIR [--set NAME=VALUE ...] [--refine N] [--steps N] [--no-fd]
 """
 
@@ -21,6 +23,8 @@ def _common(p: argparse.ArgumentParser):
                    help="override a named parameter (repeatable), e.g. --set R=2")
     p.add_argument("--refine", type=int, default=0, help="mesh refinement level (0 = default)")
     p.add_argument("--steps", type=int, default=1, help="number of load increments")
+    p.add_argument("--solver", default="superlu", choices=["superlu", "pardiso", "umfpack"],
+                   help="sparse direct solver (pardiso needs pypardiso, umfpack scikit-umfpack)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -46,7 +50,8 @@ def main(argv=None) -> int:
             from .problems import hertz
 
             s = hertz.run(args.out, params, refine=args.refine, method=args.method,
-                          finite_strain=args.finite_strain, steps=args.steps, fd_check=not args.no_fd)
+                          finite_strain=args.finite_strain, steps=args.steps, fd_check=not args.no_fd,
+                          solver=args.solver)
             print(f"Hertz ({args.method}, {s['mesh']['dofs']} DOFs): p0 = {s['p0']['computed']:.5g} "
                   f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
                   f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
@@ -56,7 +61,7 @@ def main(argv=None) -> int:
             from .problems import hertz_friction
 
             s = hertz_friction.run(args.out, params, refine=args.refine, steps=args.steps,
-                                   fd_check=not args.no_fd)
+                                   fd_check=not args.no_fd, solver=args.solver)
             ca = ", ".join(f"{v:.3f}" for v in s["c_over_a"])
             print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
                   f"c/a at P1, P2, P3 = {ca}; Newton iterations {sum(s['newton_iterations'])} "

@@ -67,9 +67,10 @@ def _vec3(a):
 
 
 def write_vtu(solution, path, i: int = -1) -> Path:
-    """Write one increment as VTU: displacement, contact pressure and multipliers
-    (point data), Cauchy stress (cell data), and the sensitivity of each of them
-    with respect to every design parameter (``d<field>_d<name>``)."""
+    """Write one increment as VTU: displacement, contact tractions and gap (point
+    data; with friction also ``contact_status`` 0 open / 1 stick / 2 slip and
+    ``slip_increment``), Cauchy stress (cell data), and the sensitivity of each
+    of them with respect to every design parameter (``d<field>_d<name>``)."""
     path = Path(path)
     m = solution.model
     X = solution.reference()
@@ -83,6 +84,15 @@ def write_vtu(solution, path, i: int = -1) -> Path:
             arr = np.zeros(m.n_nodes)
             arr[c["node"]] = c[key]
             point[key + tag] = arr
+        if "status" in c:  # friction: 0 open, 1 stick, 2 slip; -1 off the contact surface
+            from .contact.friction import STATUS_NAMES
+
+            code = -np.ones(m.n_nodes)
+            code[c["node"]] = [STATUS_NAMES.index(v) for v in c["status"]]
+            point["contact_status" + tag] = code
+            slip = np.zeros(m.n_nodes)
+            slip[c["node"]] = c["slip"]
+            point["slip_increment" + tag] = slip
     stress, dstress = solution.stress(i)
     cell = {"cauchy_stress": [stress.reshape(-1, 9)]}
     for name, d in dstress.items():

@@ -81,6 +81,10 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     names = list(sensitivities)
     check_names(names, problem.params, "sensitivities")
     model = model_for(problem)
+    for c in problem.contact:
+        if type(c.method).__name__ == "UzawaPenalty":
+            raise InputError("UzawaPenalty is the inner law of Uzawa's algorithm: solve with "
+                             "signorini.uzawa.solve_uzawa, or use AugmentedLagrangian with solve")
     params = as_jax(problem.params)
     model.check(problem.params)
     lin = get_solver(solver)

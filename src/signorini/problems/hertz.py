@@ -117,7 +117,7 @@ def fine_cell_size(problem: Problem) -> float:
 
 def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         finite_strain: bool = False, steps: int = 1, fd_check: bool = True,
-        sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4) -> dict:
+        sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4, solver="superlu") -> dict:
     """Solve the Hertz benchmark with DDM sensitivities and write the results.
 
     Writes ``contact.csv``, ``summary.json``, ``pressure.png``,
@@ -138,7 +138,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     v = pb.params
     an = analytical(v["P"], v["R"], v["E"], v["nu"])
     t0 = time.perf_counter()
-    sol = solve(pb, steps=steps, sensitivities=list(sensitivities), options=options)
+    sol = solve(pb, steps=steps, sensitivities=list(sensitivities), options=options, solver=solver)
     t_solve = time.perf_counter() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]
@@ -157,7 +157,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         inner = x < 0.9 * an["a"]  # p_N is not differentiable at x = a (THEORY 8)
         for n in sensitivities:
             fd = finite_difference(pb, n, lambda s: s.contact()["p_N"][inner], steps=steps,
-                                   options=options, rel_step=fd_step)
+                                   options=options, rel_step=fd_step, solver=solver)
             ddm = c[f"dp_N_d{n}"][inner]
             ddm_fd[n] = float(np.max(np.abs(ddm - fd)) / np.max(np.abs(ddm)))
 
