@@ -12,12 +12,13 @@ Newton iteration count. Prints a table and writes benchmarks/results/hertz.csv.
 from __future__ import annotations
 
 import argparse
-import csv
 import resource
 import time
 from pathlib import Path
 
 import numpy as np
+
+from _report import report
 
 import signorini as sg
 from signorini.linsolve import get_solver
@@ -87,18 +88,7 @@ def main():
         r = run(size, args.solver)
         rows.append(r)
         print(f"{size}: {r['dofs']} DOFs done", flush=True)
-    keys = list(rows[0])
-    print()
-    print(" | ".join(f"{k:>12.12s}" for k in keys))
-    for r in rows:
-        print(" | ".join(f"{v:>12.4g}" if isinstance(v, float) else f"{v!s:>12.12s}" for v in r.values()))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "w", newline="") as f:
-        wr = csv.DictWriter(f, fieldnames=keys)
-        wr.writeheader()
-        wr.writerows(rows)
-    print(f"\nwritten {out}")
+    report(rows, args.out)
 
 
 if __name__ == "__main__":

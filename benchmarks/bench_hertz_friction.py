@@ -12,10 +12,11 @@ benchmarks/results/hertz_friction.csv.
 from __future__ import annotations
 
 import argparse
-import csv
 import resource
 import time
 from pathlib import Path
+
+from _report import report
 
 import signorini as sg
 from signorini.problems.hertz_friction import hertz_friction_problem
@@ -58,18 +59,7 @@ def main():
     for size in args.sizes.split(","):
         rows.append(run(size, args.steps, args.solver))
         print(f"{size}: {rows[-1]['dofs']} DOFs done", flush=True)
-    keys = list(rows[0])
-    print()
-    print(" | ".join(f"{k:>12.12s}" for k in keys))
-    for r in rows:
-        print(" | ".join(f"{v:>12.4g}" if isinstance(v, float) else f"{v!s:>12.12s}" for v in r.values()))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "w", newline="") as f:
-        wr = csv.DictWriter(f, fieldnames=keys)
-        wr.writeheader()
-        wr.writerows(rows)
-    print(f"\nwritten {out}")
+    report(rows, args.out)
 
 
 if __name__ == "__main__":

@@ -92,7 +92,11 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
     lin = get_solver(solver)
     s = model.surfaces[0]
     method = s.contact.method
-    ddm = DDM(model, names) if names else None
+    ddm = None
+    if names:
+        ddm = model.cache.get(("ddm", tuple(names)))
+        if ddm is None:
+            ddm = model.cache[("ddm", tuple(names))] = DDM(model, names)
     weights = model.convergence_weights(params)
 
     def update(w, p, t, lam_k):
@@ -102,10 +106,12 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
         return jax.vmap(lambda xs, lk, X0, N0: method.update(
             xs, geo, model._obstacle_at(s, (X0, N0)), cp, lk))(x, lam_k, *Xs)
 
-    upd = jax.jit(update)
-    upd_jvp = jax.jit(jax.vmap(lambda w, p, t, lk, wd, e, lkd: jax.jvp(
-        lambda w_, p_, l_: update(w_, p_, t, l_), (w, p, lk), (wd, e, lkd))[1],
-        (None, None, None, None, 0, 0, 0)))
+    if ("uzawa",) not in model.cache:  # compiled once per model, like solve()'s DDM
+        model.cache[("uzawa",)] = (jax.jit(update), jax.jit(jax.vmap(
+            lambda w, p, t, lk, wd, e, lkd: jax.jvp(
+                lambda w_, p_, l_: update(w_, p_, t, l_), (w, p, lk), (wd, e, lkd))[1],
+            (None, None, None, None, 0, 0, 0))))
+    upd, upd_jvp = model.cache[("uzawa",)]
 
     out = UzawaSolution(model)
     nc = s.nodes.size

@@ -1,0 +1,23 @@
+"""Shared output of the benchmark scripts: a printed table and a CSV file."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+
+def report(rows: list[dict], out, width: int = 12) -> None:
+    """Print ``rows`` as a table (one column per key) and write them to ``out`` (CSV)."""
+    keys = list(rows[0])
+    print()
+    print(" | ".join(f"{k:>{width}.{width}s}" for k in keys))
+    for r in rows:
+        print(" | ".join(f"{v:>{width}.4g}" if isinstance(v, float) else f"{v!s:>{width}.{width}s}"
+                         for v in r.values()))
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=keys)
+        wr.writeheader()
+        wr.writerows(rows)
+    print(f"\nwritten {out}")
