@@ -325,11 +325,8 @@ class Model:
         u, lams = self.split(w)
         mp = p.material.values(params)
 
-        def el(ue, Xe):
-            r = lambda v: element.element_residual(v.reshape(4, 2), Xe, p.material, mp).ravel()
-            return jax.jacfwd(lambda v: (r(v), r(v)), has_aux=True)(ue.ravel())
-
-        Ke, re = jax.vmap(el)(u[self.conn], X[self.conn])
+        re, Ke = jax.vmap(lambda ue, Xe: element.element_residual_tangent(ue, Xe, p.material, mp))(
+            u[self.conn], X[self.conn])
         R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
         R = R - self.external_forces(X, params, t)
         blocks = [Ke]
