@@ -52,8 +52,8 @@ class Umfpack:
     def __init__(self):
         try:
             import scikits.umfpack  # noqa: F401
-        except ImportError:
-            raise InputError("solver 'umfpack' needs `pip install scikit-umfpack`") from None
+        except (ImportError, OSError) as e:
+            raise InputError(f"solver 'umfpack' needs `pip install scikit-umfpack` (import failed: {e})") from None
 
     def factorize(self, K):
         import scikits.umfpack as um
@@ -81,8 +81,8 @@ class Pardiso:
     def __init__(self):
         try:
             import pypardiso
-        except ImportError:
-            raise InputError("solver 'pardiso' needs `pip install pypardiso`") from None
+        except (ImportError, OSError) as e:  # OSError: MKL's shared library not found
+            raise InputError(f"solver 'pardiso' needs `pip install pypardiso` (import failed: {e})") from None
         self._solver = pypardiso.PyPardisoSolver()  # mtype 11: real unsymmetric
         self._generation = 0
 
