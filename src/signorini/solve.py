@@ -56,6 +56,16 @@ def model_for(problem: Problem) -> Model:
     return m
 
 
+def ddm_for(model: Model, names: Sequence[str]) -> DDM | None:
+    """The model's compiled DDM for these parameter names (None if there are none)."""
+    if not names:
+        return None
+    key = ("ddm", tuple(names))
+    if key not in model.cache:
+        model.cache[key] = DDM(model, names)
+    return model.cache[key]
+
+
 def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
           options: NewtonOptions = NewtonOptions(), solver="superlu") -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
@@ -82,17 +92,14 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     check_names(names, problem.params, "sensitivities")
     model = model_for(problem)
     for c in problem.contact:
-        if type(c.method).__name__ == "UzawaPenalty":
-            raise InputError("UzawaPenalty is the inner law of Uzawa's algorithm: solve with "
-                             "signorini.uzawa.solve_uzawa, or use AugmentedLagrangian with solve")
+        driver = getattr(c.method, "driver", None)  # a law that needs its own solution algorithm
+        if driver is not None:
+            raise InputError(f"{type(c.method).__name__} is solved by {driver}, not by "
+                             "signorini.solve (use AugmentedLagrangian for the single-Newton method)")
     params = as_jax(problem.params)
     model.check(problem.params)
     lin = get_solver(solver)
-    ddm = None
-    if names:
-        ddm = model.cache.get(("ddm", tuple(names)))
-        if ddm is None:
-            ddm = model.cache[("ddm", tuple(names))] = DDM(model, names)
+    ddm = ddm_for(model, names)
     weights = model.convergence_weights(params)
 
     sol = Solution(model, dict(problem.params), names)

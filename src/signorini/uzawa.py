@@ -27,8 +27,7 @@ from .errors import ConvergenceError, InputError
 from .linsolve import get_solver
 from .newton import NewtonOptions, StepFailure, StepLog, newton
 from .params import as_jax, check_names, unit_tangents
-from .sensitivity import DDM
-from .solve import model_for
+from .solve import ddm_for, model_for
 
 log = logging.getLogger("signorini")
 
@@ -92,11 +91,7 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
     lin = get_solver(solver)
     s = model.surfaces[0]
     method = s.contact.method
-    ddm = None
-    if names:
-        ddm = model.cache.get(("ddm", tuple(names)))
-        if ddm is None:
-            ddm = model.cache[("ddm", tuple(names))] = DDM(model, names)
+    ddm = ddm_for(model, names)
     weights = model.convergence_weights(params)
 
     def update(w, p, t, lam_k):
