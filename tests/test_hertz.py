@@ -158,3 +158,26 @@ def test_finite_strain_hertz_quadratic_newton_and_ddm():
                                   steps=2, options=TIGHT)
         ddm = sol.displacement_sensitivity(name).ravel()
         assert np.max(np.abs(ddm - fd)) <= 1e-5 * np.max(np.abs(ddm))
+
+
+def test_obstacle_centre_and_poisson_ratio_as_design_parameters():
+    """Centre: under force control, raising the cylinder by cy only translates the
+    body, so exactly Du/Dcy = (0, 1) at every node and Dp_N/Dcy = 0. Exact with the
+    finite contact kinematics (the linearised gap is taken about X and is not
+    invariant under a common translation of body and obstacle). nu: DDM vs FD."""
+    import dataclasses
+
+    pb = hertz.hertz_problem(n_fine=8, size=8)
+    circle = sg.Circle(radius="R", centre=(0.0, lambda p: p["R"] + p["cy"]))
+    c = pb.contact[0]
+    pb = dataclasses.replace(pb, params={**pb.params, "cy": 0.0},
+                             contact=(sg.Contact(circle, c.edges, c.method, kinematics="finite"),))
+    sol = sg.solve(pb, sensitivities=["cy", "nu"], options=TIGHT)
+    du = sol.displacement_sensitivity("cy")
+    assert np.allclose(du[:, 0], 0.0, atol=1e-9) and np.allclose(du[:, 1], 1.0, atol=1e-9)
+    # Dp_N/Dcy is a pressure per length: its scale is p0/a (measured: 6e-10 of it)
+    assert np.max(np.abs(sol.contact()["dp_N_dcy"])) <= 1e-8 * AN["p0"] / AN["a"]
+    fd = sg.finite_difference(pb, "nu", lambda s: s.displacement().ravel(), rel_step=1e-4,
+                              options=TIGHT)
+    ddm = sol.displacement_sensitivity("nu").ravel()
+    assert np.max(np.abs(ddm - fd)) <= 1e-5 * np.max(np.abs(ddm))
