@@ -10,7 +10,8 @@ One pure function is the source of truth::
 
 It is built from the per-element kernel (gradient of the element energy) and
 the per-contact-node kernel (gradient of the contact pseudo-potential), both
-``vmap``-ed. Newton gets the same kernels' Jacobians block by block
+``vmap``-ed. Newton gets the same kernels' Jacobians block by block (elements:
+material-point autodiff contracted with B, :func:`element.element_residual_tangent`)
 (:meth:`Model.local_tangents`, assembled sparsely), the DDM pseudo-load is a
 JVP of ``residual`` in (params, w_p, state_n) (:mod:`signorini.sensitivity`).
 
