@@ -16,7 +16,6 @@ import resource
 import time
 from pathlib import Path
 
-import numpy as np
 
 from _report import report
 
@@ -43,7 +42,7 @@ def run(size: str, solver: str) -> dict:
     pb = hertz.hertz_problem(**MESHES[size])
     sg.solve(pb, sensitivities=NAMES, solver=solver)  # compile (not timed)
     t0 = time.perf_counter()
-    sol = sg.solve(pb, solver=solver)
+    sg.solve(pb, solver=solver)
     t_solve = time.perf_counter() - t0
     t0 = time.perf_counter()
     sol_s = sg.solve(pb, sensitivities=NAMES, solver=solver)

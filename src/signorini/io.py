@@ -5,9 +5,13 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import meshio
 import numpy as np
+
+if TYPE_CHECKING:
+    from .mesh import Mesh
 
 
 def read_mesh(path) -> "Mesh":

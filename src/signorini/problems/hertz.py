@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jax import jnp
 from ..contact import AugmentedLagrangian, Contact, Penalty
 from ..errors import InputError, UnknownParameterError
 from ..loads import Fixed, Pressure
