@@ -1,10 +1,7 @@
-"""The ``signorini`` command.
+"""The ``signorini`` command: the paper's benchmarks and problem files.
 
-    signorini hertz --out DIR [--set NAME=VALUE ...] [--refine N] [--method al|penalty]
-                    [--finite-strain] [--steps N] [--no-fd] [--solver superlu|pardiso|umfpack]
-    signorini hertz-friction --out DIR [--set NAME=VALUE ...] [--refine N] [--steps 3k]
-                    [--no-fd] [--solver ...]
-    signorini hertz-friction --out DIR [--set NAME=VALUE ...] [--refine N] [--steps N] [--no-fd]
+Exit codes: 0 success, 1 the solve failed (converged increments and
+``summary.json`` with ``"status": "failed"`` are written), 2 bad input.
 """
 
 from __future__ import annotations
@@ -12,64 +9,276 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+import warnings
 
-from .errors import SignoriniError
-from .params import parse_assignment
+from .errors import ConvergenceError, InputError, SignoriniError, SignoriniWarning
+
+UNITS = "Units: mm, N/mm (force per unit thickness), N/mm² (MPa)."
+
+HERTZ_SET = {
+    "E": "Young's modulus [N/mm²], default 100",
+    "nu": "Poisson's ratio, default 0.3",
+    "P": "load per unit thickness [N/mm], default 1.2",
+    "R": "cylinder radius [mm], default 1",
+    "eps": "augmentation/penalty parameter [N/mm³], default E0/h (nominal E0, contact cell h)",
+    "bump": "shape parameter: amplitude of a crown on the top face [mm], default 0",
+}
+FRICTION_SET = {
+    "E": "Young's modulus [N/mm²], default 100",
+    "nu": "Poisson's ratio, default 0.3",
+    "P": "final load per unit thickness [N/mm], default 1.5",
+    "R": "cylinder radius [mm], default 10",
+    "mu": "Coulomb friction coefficient, default 0.3",
+    "eps": "normal augmentation parameter [N/mm³], default E0/h",
+    "eps_t": "tangential augmentation parameter [N/mm³], default eps",
+    "bump": "shape parameter: amplitude of a crown on the top face [mm], default 0",
+}
 
 
-def _common(p: argparse.ArgumentParser):
-    p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a named parameter (repeatable), e.g. --set R=2")
-    p.add_argument("--refine", type=int, default=0, help="mesh refinement level (0 = default)")
-    p.add_argument("--steps", type=int, default=1, help="number of load increments")
+class _Formatter(argparse.HelpFormatter):
+    """Shows '(default: X)' only where there is a meaningful default."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        d = action.default
+        if (d not in (None, False, [], argparse.SUPPRESS) and "%(default)" not in text
+                and action.option_strings):
+            text += " (default: %(default)s)"
+        return text
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return v
+
+
+def _nonneg_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return v
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return v
+
+
+def parse_sets(items: list[str], allowed: dict) -> dict:
+    """``--set NAME=VALUE`` items -> {name: float}; unknown, repeated, non-numeric
+    or non-finite values are errors that name the item."""
+    from .params import parse_assignment
+
+    out: dict[str, float] = {}
+    for text in items:
+        name, value = parse_assignment(text)
+        if name not in allowed:
+            raise InputError(f"--set {text}: unknown parameter {name!r}; this command accepts "
+                             f"{', '.join(allowed)}")
+        if name in out:
+            raise InputError(f"--set {name} is given twice ({out[name]:g} and {value:g}); give "
+                             "each parameter once")
+        if value != value or abs(value) == float("inf"):
+            raise InputError(f"--set {text}: the value must be a finite number")
+        out[name] = value
+    return out
+
+
+def _set_help(allowed: dict) -> str:
+    return ("set a named parameter (repeatable), e.g. --set R=2. Names: " +
+            "; ".join(f"{k} = {v}" for k, v in allowed.items()) + ". The mesh never changes with "
+            "these values (it is sized from the defaults and --block/--zone-width/--refine), so "
+            "finite differences of two runs equal the printed DDM sensitivities.")
+
+
+def _common(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: str, a0: float):
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (created if needed; must be writable)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help=_set_help(allowed))
+    p.add_argument("--refine", type=_nonneg_int, default=0, metavar="N",
+                   help="halve every cell N times (each level: 4x the unknowns)")
+    p.add_argument("--block", type=_positive_float, default=20.0, metavar="B",
+                   help=f"block width and depth, in units of the nominal contact half-width a0 "
+                        f"(a0 = {a0:.4g} mm: Hertz's half-width at the default parameters)")
+    p.add_argument("--zone-width", type=_positive_float, default=1.5, metavar="Z",
+                   help="width of the uniformly fine mesh zone at the contact, in units of a0")
+    p.add_argument("--steps", type=_positive_int, default=steps, metavar="N", help=steps_help)
+    p.add_argument("--finite-strain", action="store_true",
+                   help="neo-Hookean block with finite contact kinematics (default: linear "
+                        "elasticity, linearised contact kinematics as in Hertz's theory)")
+    p.add_argument("--no-fd", action="store_true",
+                   help="skip the check of the DDM sensitivities by central finite differences "
+                        "(saves two re-solves per parameter)")
+    _solver_options(p)
+
+
+def _solver_options(p):
     p.add_argument("--solver", default="superlu", choices=["superlu", "pardiso", "umfpack"],
                    help="sparse direct solver (pardiso needs pypardiso, umfpack scikit-umfpack)")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.add_argument("--force-size", action="store_true",
+                   help="run even if the estimated memory exceeds what is available")
+    v = p.add_mutually_exclusive_group()
+    v.add_argument("-q", "--quiet", action="store_true", help="print only errors and the result line")
+    v.add_argument("-v", "--verbose", action="store_true",
+                   help="log every increment and Newton iteration instead of progress bars")
+
+
+def _a0(name: str) -> float:
+    import importlib
+
+    from .problems.hertz import analytical
+
+    d = importlib.import_module(f"signorini.problems.{name}").DEFAULTS
+    return float(analytical(d["P"], d["R"], d["E"], d["nu"])["a"])
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    fmt = _Formatter
+    parser = argparse.ArgumentParser(
+        prog="signorini", formatter_class=fmt,
+        description="Contact mechanics with exact sensitivities: the Alart-Curnier augmented "
+                    "Lagrangian with direct-differentiation (DDM) sensitivities. " + UNITS,
+        epilog="Run 'signorini COMMAND --help' for the options of a command. Exit codes: 0 "
+               "success, 1 the solve failed (converged increments and summary.json with status "
+               "'failed' are written), 2 bad input.")
+    parser.add_argument("--version", action="version", version=f"signorini {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    h = sub.add_parser(
+        "hertz", formatter_class=fmt, help="frictionless plane-strain Hertz benchmark (paper 5.1)",
+        description="Rigid cylinder (radius R) pressed with P per unit thickness onto an elastic "
+                    "block; symmetric half model, held only by the contact. Writes contact.csv "
+                    "(pressure and its DDM sensitivities to R, E, P), summary.json (p0 and a vs "
+                    "the analytical solution, Newton log, DDM vs FD), pressure.png, "
+                    "sensitivity.png and hertz.vtu. " + UNITS)
+    _common(h, HERTZ_SET, 1, "number of equal load increments", _a0("hertz"))
+    h.add_argument("--method", choices=["al", "penalty"], default="al",
+                   help="contact method: augmented Lagrangian (exact) or penalty (comparator)")
+
+    f = sub.add_parser(
+        "hertz-friction", formatter_class=fmt,
+        help="frictional plane-strain Hertz benchmark with Coulomb friction (paper 5.2)",
+        description="The Hertz half model with Coulomb friction (mu = 0.3, R = 10), the load "
+                    "growing to P in --steps increments; path-dependent DDM sensitivities to R, "
+                    "mu, E. Writes contact_P1..3.csv, summary.json (c/a with its bracket, Newton "
+                    "log, DDM vs FD), Fig. 5/6-like figures, VTU files at P1..P3 and the series "
+                    "hertz_friction.pvd. " + UNITS)
+    _common(f, FRICTION_SET, 30, "number of load increments, a multiple of 3 (P1 = P/3, P2 = 2P/3 "
+            "and P3 = P must be increments)", _a0("hertz_friction"))
+
+    r = sub.add_parser(
+        "run", formatter_class=fmt, help="solve a problem described in a TOML file",
+        description="Solve the problem of a TOML problem file (mesh, material, obstacle, loads, "
+                    "contact law, increments, sensitivities, outputs; see docs/problem-files.md) "
+                    "and write summary.json, contact tables, VTU and a .pvd series into --out.")
+    r.add_argument("file", metavar="FILE", help="the problem file (.toml)")
+    r.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    _solver_options(r)
+    return parser
+
+
+def _configure_logging(args) -> None:
+    logging.basicConfig(level=logging.WARNING, format="%(message)s", stream=sys.stderr, force=True)
+    level = logging.WARNING if args.quiet else (logging.DEBUG if args.verbose else logging.INFO)
+    logging.getLogger("signorini").setLevel(level)
+    warnings.simplefilter("ignore", SignoriniWarning)  # already logged once
+
+
+class _IncrementFilter(logging.Filter):
+    """With progress bars, the per-increment INFO lines would only repeat the bar."""
+
+    def filter(self, record):
+        msg = str(record.msg)
+        return not (record.levelno == logging.INFO and msg.startswith("[") and "increment" in msg)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="signorini", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest="command", required=True)
-    h = sub.add_parser("hertz", help="frictionless plane-strain Hertz benchmark (paper 5.1)")
-    _common(h)
-    h.add_argument("--method", choices=["al", "penalty"], default="al")
-    h.add_argument("--finite-strain", action="store_true", help="neo-Hookean block, finite kinematics")
-    h.add_argument("--no-fd", action="store_true", help="skip the finite-difference check")
-    f = sub.add_parser("hertz-friction", help="frictional plane-strain Hertz benchmark (paper 5.2)")
-    _common(f)
-    f.set_defaults(steps=30)  # a multiple of 3: P1, P2, P3 are increments
-    f.add_argument("--no-fd", action="store_true", help="skip the finite-difference check")
+    parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
-                        format="%(message)s", stream=sys.stderr)
+    _configure_logging(args)
+    from . import progress
+
+    show = not (args.quiet or args.verbose) and sys.stderr.isatty()
+    flt = _IncrementFilter()
+    root = logging.getLogger()
+    if not args.verbose:
+        for hd in root.handlers:
+            hd.addFilter(flt)
     try:
-        params = dict(parse_assignment(s) for s in args.set)
-        if args.command == "hertz":
-            from .problems import hertz
-
-            s = hertz.run(args.out, params, refine=args.refine, method=args.method,
-                          finite_strain=args.finite_strain, steps=args.steps, fd_check=not args.no_fd,
-                          solver=args.solver)
-            print(f"Hertz ({args.method}, {s['mesh']['dofs']} DOFs): p0 = {s['p0']['computed']:.5g} "
-                  f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
-                  f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
-                  f"Newton iterations {s['newton_iterations']}; DDM vs FD {s['ddm_vs_fd_rel_diff']}")
-            print(f"results in {args.out}/")
-        elif args.command == "hertz-friction":
-            from .problems import hertz_friction
-
-            s = hertz_friction.run(args.out, params, refine=args.refine, steps=args.steps,
-                                   fd_check=not args.no_fd, solver=args.solver)
-            ca = ", ".join(f"{v:.3f}" for v in s["c_over_a"])
-            print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
-                  f"c/a at P1, P2, P3 = {ca}; Newton iterations {sum(s['newton_iterations'])} "
-                  f"in total; DDM vs FD at P3 {s['ddm_vs_fd_rel_diff_P3']}")
-            print(f"results in {args.out}/")
+        with progress.bars(show):
+            return _dispatch(args)
+    except ConvergenceError as e:
+        print(f"signorini: the solve failed: {e}", file=sys.stderr)
+        print(f"converged increments and summary.json (status 'failed') are in {args.out}/",
+              file=sys.stderr)
+        return 1
     except SignoriniError as e:
         print(f"signorini: error: {e}", file=sys.stderr)
         return 2
+    finally:
+        for hd in root.handlers:
+            hd.removeFilter(flt)
+
+
+def _fmt_fd(d) -> str:
+    if not isinstance(d, dict):
+        return "not computed (--no-fd)"
+    return ", ".join(f"{k} {v:.1e}" for k, v in d.items())
+
+
+def _dispatch(args) -> int:
+    if args.command == "hertz":
+        from .problems import hertz
+
+        params = parse_sets(args.set, HERTZ_SET)
+        s = hertz.run(args.out, params, refine=args.refine, method=args.method,
+                      finite_strain=args.finite_strain, steps=args.steps, fd_check=not args.no_fd,
+                      solver=args.solver, size=args.block, zone=args.zone_width,
+                      force_size=args.force_size)
+        print(f"Hertz ({args.method}, {s['mesh']['dofs']} DOFs): p0 = {s['p0']['computed']:.5g} "
+              f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
+              f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
+              f"Newton iterations {s['newton_iterations']}; DDM vs FD (max rel. diff.): "
+              f"{_fmt_fd(s['ddm_vs_fd_rel_diff'])}")
+    elif args.command == "hertz-friction":
+        from .problems import hertz_friction
+
+        params = parse_sets(args.set, FRICTION_SET)
+        s = hertz_friction.run(args.out, params, refine=args.refine, steps=args.steps,
+                               fd_check=not args.no_fd, solver=args.solver, size=args.block,
+                               zone=args.zone_width, finite_strain=args.finite_strain,
+                               force_size=args.force_size)
+        ca = ", ".join(f"{lv['c_over_a']:.3f} [{lv['c_over_a_bracket'][0]:.3f}, "
+                       f"{lv['c_over_a_bracket'][1]:.3f}]" for lv in s["loads"])
+        print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
+              f"c/a at P1, P2, P3 = {ca}; Newton iterations {sum(s['newton_iterations'])} "
+              f"in total; DDM vs FD at P3 (max rel. diff.): {_fmt_fd(s['ddm_vs_fd_rel_diff_P3'])}")
+    elif args.command == "run":
+        from . import problemfile
+
+        s = problemfile.run(args.file, args.out, solver=args.solver)
+        print(f"{args.file}: {s.get('status', 'done')}; results in {args.out}/")
+        return 0
+    if s.get("warnings"):
+        print(f"{len(s['warnings'])} warning(s), also in summary.json:", file=sys.stderr)
+        for w in s["warnings"]:
+            print(f"  - {w}", file=sys.stderr)
+    print(f"results in {args.out}/")
     return 0
 
 

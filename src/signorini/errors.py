@@ -46,3 +46,16 @@ class ConvergenceError(SolverError):
     def __init__(self, message: str, partial=None):
         super().__init__(message)
         self.partial = partial
+
+
+class ResourceError(InputError):
+    """The problem is estimated to need more memory than the machine has."""
+
+
+class SignoriniWarning(UserWarning):
+    """A result that may not be what the user expects (coarse contact zone,
+    deep initial penetration, tunnelling, a load path too coarse for friction).
+
+    Every such warning is also logged on the ``signorini`` logger and kept in
+    :attr:`signorini.solution.Solution.warnings` (and so in ``summary.json``).
+    """

@@ -120,6 +120,9 @@ SOLVERS = {"superlu": SuperLU, "umfpack": Umfpack, "pardiso": Pardiso}
 def get_solver(name_or_solver="superlu"):
     """A solver instance from its name (``superlu``, ``umfpack``, ``pardiso``)."""
     if not isinstance(name_or_solver, str):
+        if not callable(getattr(name_or_solver, "factorize", None)):
+            raise InputError(f"solver must be one of {sorted(SOLVERS)} or an object with a "
+                             f"factorize(K) method, got {name_or_solver!r}")
         return name_or_solver
     try:
         return SOLVERS[name_or_solver]()

@@ -73,6 +73,15 @@ class Traction:
     resultant: bool = False
     ramp: Callable = _linear
 
+    def __post_init__(self):
+        from .errors import InputError
+
+        v = self.value
+        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__") or len(v) != 2:
+            raise InputError(f"Traction({self.edges!r}): value must be a pair (t_x, t_y) of numbers "
+                             f"or parameter names, got {v!r}; for a normal load use Pressure")
+        object.__setattr__(self, "value", tuple(v))
+
     def specs(self):
         return tuple(self.value)
 

@@ -34,10 +34,11 @@ class _Elastic:
 
     def check(self, params):
         v = {k: float(x) for k, x in self.values(params).items()}
-        if not v["E"] > 0:
-            raise InputError(f"Young's modulus must be positive, got E={v['E']}")
+        if not 0 < v["E"] < float("inf"):
+            raise InputError(f"Young's modulus must be positive, got E={v['E']} (a finite number)")
         if not -1.0 < v["nu"] < 0.5:
-            raise InputError(f"Poisson's ratio must lie in (-1, 0.5), got nu={v['nu']}")
+            raise InputError(f"Poisson's ratio must lie in (-1, 0.5), got nu={v['nu']} (0.5 is "
+                             "incompressible, which these displacement elements cannot represent)")
 
     @staticmethod
     def lame(mp):

@@ -40,6 +40,12 @@ class Mesh:
             raise InputError(f"nodes must have shape (n_nodes, 2), got {nodes.shape}")
         if cells.ndim != 2 or cells.shape[1] != 4:
             raise InputError(f"cells must have shape (n_cells, 4) (Q4), got {cells.shape}")
+        if not np.all(np.isfinite(nodes)):
+            bad = int(np.nonzero(~np.all(np.isfinite(nodes), axis=1))[0][0])
+            raise InputError(f"node coordinates must be finite numbers: node {bad} is at "
+                             f"{nodes[bad].tolist()}; fix the mesh (NaN or inf in the coordinates)")
+        if len(cells) == 0:
+            raise InputError("the mesh has no cells; a body needs at least one Q4 cell")
         if cells.size and (cells.min() < 0 or cells.max() >= len(nodes)):
             raise InputError("cells refer to node indices outside 0..n_nodes-1")
         object.__setattr__(self, "nodes", nodes)
@@ -49,7 +55,16 @@ class Mesh:
             if v.size and (v.min() < 0 or v.max() >= len(nodes)):
                 raise InputError(f"node set {k!r} refers to nodes outside 0..{len(nodes)-1}")
         object.__setattr__(self, "node_sets", ns)
-        es = {k: np.asarray(v, dtype=np.int64).reshape(-1, 2) for k, v in self.edge_sets.items()}
+        es = {}
+        for k, v in self.edge_sets.items():
+            a = np.asarray(v)
+            if a.ndim != 2 or a.shape[1] != 2 or (a.size and not np.issubdtype(a.dtype, np.integer)):
+                raise InputError(f"edge set {k!r} must be an (n_edges, 2) array of node indices "
+                                 f"(one row per edge: first node, second node), got shape {a.shape} "
+                                 f"of {a.dtype}")
+            if a.size and (a.min() < 0 or a.max() >= len(nodes)):
+                raise InputError(f"edge set {k!r} refers to nodes outside 0..{len(nodes)-1}")
+            es[k] = a.astype(np.int64)
         object.__setattr__(self, "edge_sets", es)
         check_orientation(nodes, cells)
         boundary = {tuple(e) for e in self.boundary_edges()}
@@ -142,10 +157,11 @@ def graded_coordinates(length: float, fine_length: float, n_fine: int, growth: f
     if rest <= 1e-14 * length:
         return fine
     h = fine_length / n_fine
-    sizes = []
-    while sum(sizes) < rest:
+    sizes, total = [], 0.0
+    while total < rest:
         h = h * growth
         sizes.append(h)
+        total += h
     if len(sizes) > 1 and sum(sizes) - rest > 0.5 * sizes[-1]:
         sizes.pop()
     sizes = np.asarray(sizes) * rest / sum(sizes)

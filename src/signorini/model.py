@@ -65,6 +65,15 @@ class Model:
         self.edofs = np.stack([2 * self.conn, 2 * self.conn + 1], axis=-1).reshape(-1, 8)
         self._check_names()
         self._X0_np = mesh.nodes
+        used = np.zeros(mesh.n_nodes, bool)
+        used[self.conn.ravel()] = True
+        if not used.all():
+            lone = np.nonzero(~used)[0]
+            raise InputError(
+                f"{lone.size} node(s) belong to no cell (first: node {int(lone[0])} at "
+                f"{mesh.nodes[lone[0]].round(6).tolist()}); their displacements would be "
+                "undetermined. Remove unused nodes from the mesh (e.g. geometry points of a gmsh "
+                "file) and renumber the cells")
 
         # contact surfaces and multiplier DOFs
         off = 2 * self.n_nodes
@@ -73,6 +82,14 @@ class Model:
             edges = mesh.edge_set(c.edges)
             check_edges(edges, c.edges)
             nodes = contact_nodes(edges)
+            for other in surfaces:
+                common = np.intersect1d(nodes, other.nodes)
+                if common.size:
+                    raise InputError(
+                        f"contact surfaces {other.contact.edges!r} and {c.edges!r} share "
+                        f"{common.size} node(s) (first: node {int(common[0])}); a node may belong "
+                        "to one Contact only: split the edge sets, or use one Contact per obstacle "
+                        "on disjoint parts of the boundary")
             m = c.method.n_multipliers
             lam = off + np.arange(len(nodes) * m).reshape(len(nodes), m)
             dofs = np.concatenate([2 * nodes[:, None], 2 * nodes[:, None] + 1, lam], axis=1)
@@ -124,6 +141,7 @@ class Model:
         self._residual = jax.jit(self.residual)
         self._cases = jax.jit(self.cases)
         self._status = jax.jit(self.contact_status, static_argnums=4)
+        self._fields = jax.jit(self.contact_fields, static_argnums=3)
         self._history_fn = jax.jit(self.history)
         self._history_jvp = jax.jit(jax.vmap(
             lambda w, p, t, wd, e: jax.jvp(lambda w_, p_: self.history(w_, p_, t), (w, p), (wd, e))[1],
@@ -148,12 +166,36 @@ class Model:
         """Validate parameter values (positive modulus, radius, eps; no inverted element)."""
         p = self.problem
         p.material.check(params)
-        for c in p.contact:
+        for s in self.surfaces:
+            c = s.contact
             c.obstacle.check(params)
             c.method.check(params)
+            self._check_regularisation(s, params)
         if self._shape_names:
             X = np.asarray(self.reference(as_jax(params)))
             check_orientation(X, self.conn, "reference mesh at the given shape parameters")
+
+    #: eps outside [1e-8, 1e8] x E/h makes the tangent ill-conditioned to no benefit
+    EPS_RANGE = (1e-8, 1e8)
+
+    def _check_regularisation(self, s: Surface, params) -> None:
+        """eps (penalty / augmentation) must be finite and not absurd next to E/h."""
+        vals = {k: float(v) for k, v in s.contact.method.values(params).items() if k.startswith("eps")}
+        try:
+            E = float(resolve(self.problem.material.E, params))
+        except AttributeError:
+            return
+        X = self._X0_np
+        h = float(np.linalg.norm(X[s.edges[:, 1]] - X[s.edges[:, 0]], axis=1).mean())
+        scale = E / h
+        lo, hi = self.EPS_RANGE
+        for k, v in vals.items():
+            if not np.isfinite(v) or not lo * scale <= v <= hi * scale:
+                raise InputError(
+                    f"contact {s.contact.edges!r}: {k} = {v:.4g} is outside [{lo:g}, {hi:g}] x E/h "
+                    f"= [{lo * scale:.3g}, {hi * scale:.3g}] (E = {E:.4g}, mean contact cell h = "
+                    f"{h:.3g}); such a value only ruins the conditioning of the tangent. "
+                    f"Use eps of the order of E/h = {scale:.3g}")
 
     def _tangential_mask(self, s: Surface):
         """(nc,) 1.0 where a history (friction) node carries lam_T, 0.0 where its

@@ -28,7 +28,10 @@ class NewtonOptions:
             (multiplier rows weighted to force units).
         atol: absolute floor of the same test.
         max_iter: iterations per increment before the increment is cut.
-        max_cuts: how many times an increment may be halved.
+        max_cuts: how many times one increment may be halved.
+        max_total_cuts: budget of step halvings over the whole load path; with
+            ``min_step`` it guarantees that the load stepping ends.
+        min_step: smallest load-factor increment (the floor of the cutting).
         divergence: ||R|| > divergence * ref stops the increment early.
         singular_check: relative linear residual above which a solve is taken
             as singular.
@@ -38,14 +41,27 @@ class NewtonOptions:
     atol: float = 0.0
     max_iter: int = 25
     max_cuts: int = 8
+    max_total_cuts: int = 40
+    min_step: float = 1e-6
     divergence: float = 1e12
     singular_check: float = 1e-6
 
     def __post_init__(self):
         if not (self.rtol > 0 or self.atol > 0):
             raise InputError("NewtonOptions: rtol or atol must be positive")
-        if self.max_iter < 1 or self.max_cuts < 0:
-            raise InputError("NewtonOptions: max_iter >= 1 and max_cuts >= 0 are required")
+        for name in ("max_iter", "max_cuts", "max_total_cuts"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool):
+                raise InputError(f"NewtonOptions: {name} must be an integer, got {v!r}")
+        if self.max_iter < 1 or self.max_cuts < 0 or self.max_total_cuts < 0:
+            raise InputError("NewtonOptions: max_iter >= 1, max_cuts >= 0 and max_total_cuts >= 0 "
+                             "are required")
+        for name in ("rtol", "atol", "min_step", "divergence", "singular_check"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v == v and abs(v) != float("inf")):
+                raise InputError(f"NewtonOptions: {name} must be a finite number, got {v!r}")
+        if not 0 < self.min_step < 1:
+            raise InputError(f"NewtonOptions: min_step must lie in (0, 1), got {self.min_step}")
 
 
 @dataclass

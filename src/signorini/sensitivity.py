@@ -89,7 +89,9 @@ def finite_difference(problem, name: str, quantity: Callable, *, step: float | N
     problem.with_params(**{name: 0.0})  # raises a clear error for an unknown name
     base = problem.params[name]
     h = step if step is not None else rel_step * max(abs(base), 1.0)
-    solve_kwargs = {k: v for k, v in solve_kwargs.items() if k != "sensitivities"}
-    qp = np.asarray(quantity(solve(problem.with_params(**{name: base + h}), **solve_kwargs)))
-    qm = np.asarray(quantity(solve(problem.with_params(**{name: base - h}), **solve_kwargs)))
+    solve_kwargs = {k: v for k, v in solve_kwargs.items() if k not in ("sensitivities", "label")}
+    qp = np.asarray(quantity(solve(problem.with_params(**{name: base + h}), label=f"FD {name}+",
+                                   **solve_kwargs)))
+    qm = np.asarray(quantity(solve(problem.with_params(**{name: base - h}), label=f"FD {name}-",
+                                   **solve_kwargs)))
     return (qp - qm) / (2.0 * h)

@@ -53,6 +53,8 @@ class Solution:
         self.increments: list[Increment] = []
         self.log: list[StepLog] = []
         self.status = "running"
+        self.reason = ""  # why the solve failed (status "failed")
+        self.warnings: list[str] = []  # suspicious results found on the way (see signorini.checks)
         self._jp = as_jax(params)
 
     # -------------------------------------------------------------- basics
@@ -63,7 +65,20 @@ class Solution:
     def _inc(self, i) -> Increment:
         if not self.increments:
             raise InputError("the solution has no converged increment")
+        n = len(self.increments)
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise InputError(f"increment index must be an integer, got {i!r}")
+        if not -n <= i < n:
+            raise InputError(f"increment index {i} is out of range: the solution has {n} converged "
+                             f"increment(s), indices 0..{n - 1} (or -1 for the last)")
         return self.increments[i]
+
+    def _surface(self, k):
+        n = len(self.model.surfaces)
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -n <= k < n:
+            raise InputError(f"contact surface index {k!r} is out of range: the problem has {n} "
+                             "contact surface(s)")
+        return self.model.surfaces[k]
 
     @property
     def newton_iterations(self) -> list[int]:
@@ -83,7 +98,7 @@ class Solution:
         return self.reference() + self.displacement(i)
 
     def multipliers(self, i: int = -1, surface: int = 0) -> np.ndarray:
-        s = self.model.surfaces[surface]
+        s = self._surface(surface)
         w = self._inc(i).w
         return w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
 
@@ -120,6 +135,7 @@ class Solution:
     def state_before(self, i: int = -1):
         """(state_n, its sensitivities) at the start of increment i (path-dependent
         problems): the state after increment i-1, or the initial state."""
+        self._inc(i)
         n = range(len(self.increments))[i]
         if n > 0:
             prev = self.increments[n - 1]
@@ -142,7 +158,7 @@ class Solution:
         return self.w_sensitivity(name, i)[: 2 * self.model.n_nodes].reshape(-1, 2)
 
     def multiplier_sensitivity(self, name: str, i: int = -1, surface: int = 0) -> np.ndarray:
-        s = self.model.surfaces[surface]
+        s = self._surface(surface)
         wd = self.w_sensitivity(name, i)
         return wd[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
 
@@ -179,7 +195,7 @@ class Solution:
         with friction also ``status`` (``open``/``stick``/``slip``) and ``slip`` (g_T of
         the increment)."""
         m = self.model
-        s = m.surfaces[surface]
+        s = self._surface(surface)
         fn = lambda w, p, t: m.contact_fields(w, p, t, surface)
         val, sens = self.response(fn, i, key=("contact", surface))
         out = {"node": s.nodes, "x_ref": self.reference()[s.nodes], "x": self.current(i)[s.nodes]}

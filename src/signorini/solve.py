@@ -21,8 +21,10 @@ from .assembly import SparsityPattern
 from .errors import ConvergenceError, InputError, SingularTangentError
 from .linsolve import get_solver
 from .model import Model
+from . import checks
 from .newton import NewtonOptions, StepFailure, StepLog, newton
 from .params import as_jax, check_names
+from .progress import SolveProgress
 from .problem import Problem
 from .sensitivity import DDM
 from .solution import Increment, Solution
@@ -67,29 +69,36 @@ def ddm_for(model: Model, names: Sequence[str]) -> DDM | None:
 
 
 def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
-          options: NewtonOptions = NewtonOptions(), solver="superlu") -> Solution:
+          options: NewtonOptions = NewtonOptions(), solver="superlu", label: str | None = None) -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
 
     Args:
         problem: the :class:`~signorini.problem.Problem`.
         steps: number of equal load increments from t = 0 to 1 (cut on failure).
-        sensitivities: design-parameter names; their DDM sensitivities are
-            computed after every converged increment.
-        options: :class:`~signorini.newton.NewtonOptions`.
+        sensitivities: list of design-parameter names; their DDM sensitivities
+            are computed after every converged increment.
+        options: :class:`~signorini.newton.NewtonOptions` (tolerances, iteration
+            and step-cutting budgets).
         solver: linear solver name (``superlu``, ``umfpack``, ``pardiso``) or object.
+        label: name of this solve in log lines and progress bars (e.g. ``"FD R+"``).
 
     Returns:
-        A :class:`~signorini.solution.Solution` with every converged increment.
+        A :class:`~signorini.solution.Solution` with every converged increment;
+        ``solution.warnings`` lists anything suspicious found on the way.
 
     Raises:
-        ConvergenceError: Newton failed even after cutting the increment; its
-            ``partial`` attribute holds the increments already converged.
+        ConvergenceError: Newton failed even after cutting the increment (or the
+            step-cutting floor/budget was reached); its ``partial`` attribute holds
+            the increments already converged.
         InputError: invalid parameters, names or meshes.
     """
-    if steps < 1:
-        raise InputError(f"steps must be >= 1, got {steps}")
-    names = list(sensitivities)
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise InputError(f"steps must be a positive integer (number of load increments), got {steps!r}")
+    names = _sensitivity_names(sensitivities)
     check_names(names, problem.params, "sensitivities")
+    check_finite(problem.params)
+    if not isinstance(options, NewtonOptions):
+        raise InputError(f"options must be a signorini.NewtonOptions, got {type(options).__name__}")
     model = model_for(problem)
     for c in problem.contact:
         driver = getattr(c.method, "driver", None)  # a law that needs its own solution algorithm
@@ -103,15 +112,22 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     weights = model.convergence_weights(params)
 
     sol = Solution(model, dict(problem.params), names)
+    checks.before_solve(model, params, sol)
+    inc_checks = checks.IncrementChecks(model, params, sol)
+    progress = SolveProgress(label, steps)
     w = np.zeros(model.n_dof)
-    state_n = model.initial_state(w, params) if hasattr(model, "initial_state") else None
-    state_dot = None
-    if ddm is not None:
-        state_dot = model.initial_state_sensitivity(params, names) if hasattr(model, "initial_state") else None
+    state_n = model.initial_state(w, params)
+    state_dot = model.initial_state_sensitivity(params, names) if ddm is not None else None
 
     t, dt_nominal = 0.0, 1.0 / steps
-    dt, cuts = dt_nominal, 0
-    n_inc = 0
+    dt, cuts, total_cuts = dt_nominal, 0, 0
+
+    def fail(message):
+        sol.status = "failed"
+        sol.reason = message
+        progress.close("failed")
+        return ConvergenceError(message, partial=sol)
+
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
         t_new = t + dt if 1.0 - (t + dt) > 1e-12 else 1.0
@@ -126,23 +142,28 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
                                         state_n, options, weights, ref, steplog)
         except StepFailure as e:
             steplog.reason = e.reason
-            log.info("increment t=%.6g: %s", t_new, steplog.summary())
             if e.fatal:
-                sol.status = "failed"
-                raise ConvergenceError(_diagnose(model, w_trial, params, t_new, e.reason, n_inc),
-                                       partial=sol) from None
+                raise fail(_diagnose(model, w_trial, params, t_new, e.reason, len(sol.increments))) from None
+            reached = (f"{len(sol.increments)} increments converged (kept in the error's .partial); "
+                       f"the load factor reached is t = {t:.6g}")
+            advice = ("Try more load steps (steps=...), a different eps, or check the loads, "
+                      "supports and material.")
             if cuts >= options.max_cuts:
-                sol.status = "failed"
-                raise ConvergenceError(
-                    f"Newton failed at t={t_new:.6g} after {cuts} step cuts ({e.reason}). "
-                    f"{len(sol.increments)} increments converged (kept in the error's .partial). "
-                    "Try more load steps, a different eps, or check the loads and supports.",
-                    partial=sol) from None
+                raise fail(f"Newton failed at t={t_new:.6g} after {cuts} step cuts ({e.reason}). "
+                           f"{reached}. {advice}") from None
+            if total_cuts >= options.max_total_cuts:
+                raise fail(f"Newton failed at t={t_new:.6g} ({e.reason}) and the budget of "
+                           f"{options.max_total_cuts} step cuts for the whole load path is spent "
+                           f"(NewtonOptions.max_total_cuts). {reached}. {advice}") from None
+            if 0.5 * dt < options.min_step * (1 - 1e-9):
+                raise fail(f"Newton failed at t={t_new:.6g} ({e.reason}) with a step of {dt:.3g}; "
+                           f"halving it would go below the smallest step {options.min_step:.3g} "
+                           f"(NewtonOptions.min_step). {reached}. {advice}") from None
             dt *= 0.5
             cuts += 1
+            total_cuts += 1
+            progress.cut(t_new, e.reason, dt)
             continue
-        n_inc += 1
-        log.info("increment %d: %s", n_inc, steplog.summary())
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
         if ddm is not None:
             t0 = time.perf_counter()
@@ -150,22 +171,53 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             try:
                 fac = lin.factorize(K)
             except SingularTangentError as e:
-                raise ConvergenceError(f"the converged tangent at t={t_new:.6g} is singular, so the "
-                                       f"sensitivities are undefined: {e}", partial=sol) from None
+                raise fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
+                           f"sensitivities are undefined: {e}") from None
             t1 = time.perf_counter()
             w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot)
             timing["factorization"] = t1 - t0
+            if not np.all(np.isfinite(w_dot)):
+                raise fail(f"the sensitivities at t={t_new:.6g} are not finite (NaN/inf in the "
+                           "pseudo-load); a parameter expression may not be differentiable at "
+                           "these values")
             inc.sens = {n: w_dot[k] for k, n in enumerate(names)}
             inc.timing = timing
-        if hasattr(model, "update_state"):
-            state_n, state_dot = model.update_state(inc, params, t_new, state_n, state_dot, names)
+        state_n, state_dot = model.update_state(inc, params, t_new, state_n, state_dot, names)
         sol.increments.append(inc)
+        progress.increment(t_new, steplog)
+        inc_checks.after(w_trial, t_new, len(sol.increments))
         w, t = w_trial, t_new
         cuts = 0  # max_cuts counts the halvings of one increment
         if dt < dt_nominal:
             dt = min(2.0 * dt, dt_nominal)  # grow back after a successful cut increment
+    inc_checks.final()
     sol.status = "converged"
+    progress.close("converged")
     return sol
+
+
+def _sensitivity_names(sensitivities) -> list[str]:
+    if isinstance(sensitivities, str):
+        raise InputError(f"sensitivities must be a list of parameter names, got the string "
+                         f"{sensitivities!r}; write sensitivities=[{sensitivities!r}]")
+    try:
+        names = list(sensitivities or ())
+    except TypeError:
+        raise InputError(f"sensitivities must be a list of parameter names, got "
+                         f"{sensitivities!r}") from None
+    for n in names:
+        if not isinstance(n, str):
+            raise InputError(f"sensitivities must be parameter names (strings), got {n!r}")
+    if len(set(names)) != len(names):
+        raise InputError(f"sensitivities lists a parameter twice: {names}")
+    return names
+
+
+def check_finite(params) -> None:
+    """Every parameter value must be a finite number."""
+    for k, v in params.items():
+        if not np.isfinite(v):
+            raise InputError(f"parameter {k!r} is {v}; every parameter must be a finite number")
 
 
 def _diagnose(model: Model, w, params, t, reason: str, n_inc: int) -> str:

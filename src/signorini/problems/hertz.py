@@ -24,6 +24,7 @@ from ..materials import LinearElastic, NeoHooke
 from ..mesh import graded_coordinates, rectangle
 from ..obstacles import Circle
 from ..problem import Problem
+from ..resources import check_size
 
 DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 1.2, "R": 1.0}
 
@@ -51,8 +52,44 @@ def pressure_dR(x, P, R, E, nu):
     return np.where(inside, h["p0"] / (2 * R) * (2 * xi**2 - 1) / s, 0.0)
 
 
+def mesh_coordinates(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 24,
+                     size: float = 20.0, zone: float = 1.5):
+    """Graded grid lines (xs, ys) of the half model and the nominal half-width a0.
+
+    The mesh depends only on the *nominal* values (``nominal``, default
+    :data:`DEFAULTS`) and on the mesh options, never on the parameter values of
+    a run: a run at R + dR has the same mesh as a run at R, so finite
+    differences of outputs equal the DDM sensitivities.
+
+    Args:
+        nominal: E, nu, P, R used to size the mesh (a0 = Hertz half-width).
+        refine: each level halves the cell size everywhere (x2 cells per direction).
+        n_fine: cells across the fine zone at refine 0.
+        size: block width and depth in units of a0.
+        zone: width of the uniformly fine zone in units of a0 (its depth is 2/3 of it).
+    """
+    nom = dict(DEFAULTS)
+    nom.update(nominal or {})
+    for k, v in (("refine", refine), ("n_fine", n_fine)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (0 if k == "refine" else 1):
+            raise InputError(f"{k} must be an integer >= {0 if k == 'refine' else 1}, got {v!r}")
+    if not (np.isfinite(size) and np.isfinite(zone) and 0 < zone < size):
+        raise InputError(f"the fine zone must be narrower than the block: need 0 < zone < block, "
+                         f"got zone = {zone} a0, block = {size} a0")
+    a0 = analytical(nom["P"], nom["R"], nom["E"], nom["nu"])["a"]
+    k = 2**refine
+    nf = n_fine * k
+    growth = 1.2 ** (1.0 / k)
+    W = H = size * a0
+    xs = graded_coordinates(W, zone * a0, nf, growth)
+    ys = -graded_coordinates(H, zone * a0 * 2.0 / 3.0, max(int(round(nf * 2 / 3)), 1), growth)[::-1]
+    return xs, ys, a0
+
+
 def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = "al",
-                  finite_strain: bool = False, n_fine: int = 24, size: float = 20.0) -> Problem:
+                  finite_strain: bool = False, n_fine: int = 24, size: float = 20.0,
+                  zone: float = 1.5, nominal: dict | None = None, force_size: bool = False,
+                  multipliers_per_node: int | None = None) -> Problem:
     """Build the Hertz half model.
 
     Args:
@@ -60,8 +97,16 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
         refine: each level halves the cell size everywhere (x2 cells per direction).
         method: ``"al"`` (augmented Lagrangian) or ``"penalty"``.
         finite_strain: neo-Hookean total-Lagrangian block instead of linear elasticity.
-        n_fine: cells across the fine zone (1.5 a wide, 1.0 a deep) at refine 0.
-        size: block width and depth in units of a.
+        n_fine: cells across the fine zone at refine 0.
+        size: block width and depth in units of the nominal half-width a0.
+        zone: width of the fine zone in units of a0.
+        nominal: the values that size the mesh (default :data:`DEFAULTS`); the
+            parameter values in ``params`` never change the mesh.
+        force_size: build the mesh even if it is estimated not to fit in memory.
+        multipliers_per_node: for the size estimate (default: that of ``method``).
+
+    The default ``eps`` is E0 / h with the nominal E0 and the contact cell size h
+    (a number, so that ``E`` changes nothing else).
     """
     values = dict(DEFAULTS)
     known = set(DEFAULTS) | {"eps", "bump"}
@@ -70,32 +115,30 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
             raise UnknownParameterError(
                 f"unknown parameter {k!r} for the Hertz problem; defined parameters: {sorted(known)}")
     values.update(params or {})
-    if refine < 0:
-        raise InputError(f"refine must be >= 0, got {refine}")
+    for k, v in values.items():
+        if not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
+            raise InputError(f"Hertz problem: parameter {k} must be a finite number, got {v!r}")
     for k in ("E", "P", "R"):
         if not values[k] > 0:
             raise InputError(f"Hertz problem: {k} must be positive, got {values[k]}")
-    a = analytical(values["P"], values["R"], values["E"], values["nu"])["a"]
-    k = 2**refine
-    nf = n_fine * k
-    growth = 1.2 ** (1.0 / k)
-    W = H = size * a
-    xs = graded_coordinates(W, 1.5 * a, nf, growth)
-    ys = -graded_coordinates(H, 1.0 * a, int(round(nf * 2 / 3)), growth)[::-1]
+    LinearElastic().check(values)
+    if method not in ("al", "penalty"):
+        raise InputError(f"unknown contact method {method!r}; use 'al' or 'penalty'")
+    nom = dict(DEFAULTS)
+    nom.update(nominal or {})
+    xs, ys, a0 = mesh_coordinates(nom, refine=refine, n_fine=n_fine, size=size, zone=zone)
+    m = multipliers_per_node if multipliers_per_node is not None else (1 if method == "al" else 0)
+    check_size(2 * len(xs) * len(ys) + m * len(xs), force=force_size, what="the Hertz mesh")
     mesh = rectangle(xs, ys)
-    h = 1.5 * a / nf
-    values.setdefault("eps", values["E"] / h)
+    H = -ys[0]
+    h = xs[1] - xs[0]
+    values.setdefault("eps", nom["E"] / h)
     values.setdefault("bump", 0.0)
     X = mesh.nodes
-    r2 = (X[:, 0] / (2 * a)) ** 2
+    r2 = (X[:, 0] / (2 * a0)) ** 2
     b = np.where(r2 < 1, r2 * (1 - r2) ** 2, 0.0)
     V = np.column_stack([np.zeros(len(X)), b * (1 + X[:, 1] / H)])
-    if method == "al":
-        meth = AugmentedLagrangian("eps")
-    elif method == "penalty":
-        meth = Penalty("eps")
-    else:
-        raise InputError(f"unknown contact method {method!r}; use 'al' or 'penalty'")
+    meth = AugmentedLagrangian("eps") if method == "al" else Penalty("eps")
     material = NeoHooke() if finite_strain else LinearElastic()
     return Problem(
         mesh=mesh,
@@ -114,51 +157,70 @@ def fine_cell_size(problem: Problem) -> float:
     return problem.mesh.min_edge_length("top")
 
 
+#: Hertz's half-space solution assumes a small contact zone, a << R
+VALID_A_OVER_R = 0.3
+
+
 def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         finite_strain: bool = False, steps: int = 1, fd_check: bool = True,
-        sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4, solver="superlu") -> dict:
+        sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4, solver="superlu",
+        size: float = 20.0, zone: float = 1.5, force_size: bool = False) -> dict:
     """Solve the Hertz benchmark with DDM sensitivities and write the results.
 
     Writes ``contact.csv``, ``summary.json``, ``pressure.png``,
-    ``sensitivity.png`` and ``hertz.vtu`` into ``out``. Returns the summary.
+    ``sensitivity.png`` and ``hertz.vtu`` (``hertz.pvd`` + one VTU per
+    increment when ``steps > 1``) into ``out``. Returns the summary. On a
+    Newton failure the converged increments and ``summary.json`` (status
+    ``failed``, the reason) are written before the error is re-raised.
     """
-    import time
-    from pathlib import Path
-
-    from .. import io, plots
+    from .. import checks, io, plots
+    from ..errors import ConvergenceError
     from ..newton import NewtonOptions
+    from ..runner import Timer, max_rel_diff, prepare_output, summary_header, write_partial
     from ..sensitivity import finite_difference
     from ..solve import solve
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    clock = Timer()
+    out = prepare_output(out)
     options = options or NewtonOptions(rtol=1e-11)
-    pb = hertz_problem(params, refine=refine, method=method, finite_strain=finite_strain)
+    sensitivities = list(sensitivities)
+    pb = hertz_problem(params, refine=refine, method=method, finite_strain=finite_strain, size=size,
+                       zone=zone, force_size=force_size)
     v = pb.params
     an = analytical(v["P"], v["R"], v["E"], v["nu"])
-    t0 = time.perf_counter()
-    sol = solve(pb, steps=steps, sensitivities=list(sensitivities), options=options, solver=solver)
-    t_solve = time.perf_counter() - t0
+    mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": fine_cell_size(pb),
+                 "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
+    t0 = clock()
+    try:
+        sol = solve(pb, steps=steps, sensitivities=sensitivities, options=options, solver=solver,
+                    label="base")
+    except ConvergenceError as e:
+        write_partial(out, e.partial, "hertz", str(e), {"params": v, "mesh": mesh_info})
+        raise
+    t_solve = clock() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]
     closed = c["p_N"] > 0
     a_fe = float(x[closed].max()) if closed.any() else 0.0
     p0_fe = float(c["p_N"].max())
+    _validity(sol, a_fe, v, pb, zone * analytical(**{k: DEFAULTS[k] for k in ("P", "R", "E", "nu")})["a"],
+              checks)
 
     cols = {"x_ref": x, "x": c["x"][:, 0], "p_N": c["p_N"]}
     for n in sensitivities:
         cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
     io.write_csv(out / "contact.csv", cols)
     io.write_vtu(sol, out / "hertz.vtu")
+    if steps > 1 and hasattr(io, "write_pvd"):
+        io.write_pvd(sol, out / "hertz.pvd")
 
     ddm_fd = {}
     if fd_check:
-        inner = x < 0.9 * an["a"]  # p_N is not differentiable at x = a (THEORY 8)
+        inner = x < 0.9 * an["a"]  # p_N is not differentiable at x = a
         for n in sensitivities:
             fd = finite_difference(pb, n, lambda s: s.contact()["p_N"][inner], steps=steps,
                                    options=options, rel_step=fd_step, solver=solver)
-            ddm = c[f"dp_N_d{n}"][inner]
-            ddm_fd[n] = float(np.max(np.abs(ddm - fd)) / np.max(np.abs(ddm)))
+            ddm_fd[n] = max_rel_diff(c[f"dp_N_d{n}"][inner], fd)
 
     xa = np.linspace(0, 1.5 * an["a"], 400)
     plots.curves(out / "pressure.png", [
@@ -176,20 +238,41 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
             xlabel="x [mm]", ylabel="Dp_N/DR [N/mm³]",
             title="Sensitivity of the pressure to the cylinder radius", xlim=(0, 1.5 * an["a"]))
 
-    summary = {
+    summary = summary_header("converged", sol)
+    summary.update({
         "params": v,
         "method": method,
         "finite_strain": finite_strain,
-        "mesh": {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells,
-                 "dofs": int(sol.model.n_dof), "contact_cell_size": fine_cell_size(pb)},
+        "steps": steps,
+        "solver": getattr(solver, "name", solver),
+        "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
         "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,
               "error_in_cells": (a_fe - an["a"]) / fine_cell_size(pb)},
         "newton_iterations": sol.newton_iterations,
         "newton_residuals": [inc.newton.residuals for inc in sol.increments],
-        "ddm_vs_fd_rel_diff": ddm_fd,
+        "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,
-    }
+        "time_wall_s": clock(),
+    })
+    summary["warnings"] = list(sol.warnings)
     io.write_json(out / "summary.json", summary)
     return summary
+
+
+def _validity(sol, a_fe: float, v: dict, pb, zone_width: float, checks) -> None:
+    """Warn when the computed contact zone leaves the model's range of validity."""
+    if a_fe > VALID_A_OVER_R * v["R"]:
+        checks.warn(sol, f"the contact half-width a = {a_fe:.4g} exceeds {VALID_A_OVER_R} R = "
+                         f"{VALID_A_OVER_R * v['R']:.4g}: Hertz's half-space solution (and the "
+                         "comparison with it) assumes a << R; reduce the load P or increase R")
+    W = float(pb.mesh.nodes[:, 0].max())
+    if a_fe > 0.25 * W:
+        checks.warn(sol, f"the contact zone (a = {a_fe:.4g}) reaches {a_fe / W:.0%} of the block "
+                         f"width {W:.4g}, so the block is no longer a half-space; use a larger "
+                         "block (--block)")
+    if a_fe > zone_width:
+        checks.warn(sol, f"the contact zone (a = {a_fe:.4g}) extends beyond the fine mesh zone "
+                         f"({zone_width:.4g}), where the cells grow; widen it (--zone-width) or "
+                         "change the nominal sizes")

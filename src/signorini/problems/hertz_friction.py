@@ -22,7 +22,7 @@ import dataclasses
 import numpy as np
 
 from ..contact import Contact, Coulomb
-from ..errors import InputError
+from ..errors import InputError, UnknownParameterError
 from . import hertz
 
 DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 1.5, "R": 10.0, "mu": 0.3}
@@ -30,20 +30,30 @@ LOADS = (1.0 / 3.0, 2.0 / 3.0, 1.0)  # P_i / P at the three reported loads
 
 
 def hertz_friction_problem(params: dict | None = None, *, refine: int = 0, n_fine: int = 24,
-                           size: float = 20.0, finite_strain: bool = False):
+                           size: float = 20.0, zone: float = 1.5, finite_strain: bool = False,
+                           force_size: bool = False):
     """The frictional Hertz half model (parameters E, nu, P, R, mu, eps, eps_t, bump).
 
-    ``eps`` defaults to E / h (h = contact cell size) and ``eps_t`` to ``eps``.
-    Mesh and material arguments as in :func:`signorini.problems.hertz.hertz_problem`
+    The mesh is sized from the nominal values :data:`DEFAULTS` (a0 = Hertz
+    half-width at P3), never from ``params``. ``eps`` defaults to E0 / h
+    (h = contact cell size, E0 nominal) and ``eps_t`` to ``eps``. Mesh and
+    material arguments as in :func:`signorini.problems.hertz.hertz_problem`
     (``finite_strain``: neo-Hookean block with finite contact kinematics).
     """
     values = dict(DEFAULTS)
+    known = set(DEFAULTS) | {"eps", "eps_t", "bump"}
+    for k in params or {}:
+        if k not in known:
+            raise UnknownParameterError(f"unknown parameter {k!r} for the frictional Hertz problem; "
+                                        f"defined parameters: {sorted(known)}")
     values.update(params or {})
-    if not values["mu"] >= 0:
-        raise InputError(f"the friction coefficient must be >= 0, got mu={values['mu']}")
+    if not (isinstance(values["mu"], (int, float)) and values["mu"] >= 0 and np.isfinite(values["mu"])):
+        raise InputError(f"the friction coefficient must be a finite number >= 0, got mu={values['mu']}")
     base = {k: v for k, v in values.items() if k not in ("mu", "eps_t")}
-    pb = hertz.hertz_problem(base, refine=refine, n_fine=n_fine, size=size,
-                             finite_strain=finite_strain)
+    nominal = {k: DEFAULTS[k] for k in ("E", "nu", "P", "R")}
+    pb = hertz.hertz_problem(base, refine=refine, n_fine=n_fine, size=size, zone=zone,
+                             finite_strain=finite_strain, nominal=nominal, force_size=force_size,
+                             multipliers_per_node=2)
     full = dict(pb.params, mu=values["mu"], eps_t=values.get("eps_t", pb.params["eps"]))
     c = pb.contact[0]
     return dataclasses.replace(pb, params=full, contact=(
@@ -57,6 +67,60 @@ def zones(contact: dict) -> tuple[float, float]:
     stick = contact["status"] == "stick"
     return (float(x[closed].max()) if closed.any() else 0.0,
             float(x[stick].max()) if stick.any() else 0.0)
+
+
+def _edge(x, inside, q):
+    """Interpolated end of the zone ``inside`` (a prefix of the sorted nodes x):
+    q**2 vanishes linearly at a square-root edge, so extrapolate q**2 from the
+    last two inside nodes to zero, clipped to the bracket [last inside, first
+    outside]. Returns (edge, (lo, hi))."""
+    idx = np.nonzero(inside)[0]
+    if not idx.size:
+        return 0.0, (0.0, float(x[0]))
+    k = idx.max()
+    lo = float(x[k])
+    hi = float(x[k + 1]) if k + 1 < len(x) else lo
+    if k < 1 or hi == lo:
+        return lo, (lo, hi)
+    y1, y2 = q[k - 1] ** 2, q[k] ** 2
+    if y1 <= y2:  # not decreasing towards the edge: no extrapolation
+        return lo, (lo, hi)
+    edge = lo + y2 * (x[k] - x[k - 1]) / (y1 - y2)
+    return float(np.clip(edge, lo, hi)), (lo, hi)
+
+
+def stick_zone(contact: dict, mu: float) -> dict:
+    """Contact and stick half-widths with their brackets, interpolated.
+
+    a: the pressure vanishes like sqrt(a - x) at the contact edge, so p_N**2 is
+    extrapolated to zero from the last two closed nodes. c: in the stick zone
+    the friction reserve q = 1 - |p_T| / (mu p_N) vanishes like sqrt(c - x) at
+    the stick/slip edge (Cattaneo–Mindlin), so q**2 is extrapolated to zero
+    from the last two sticking nodes. Both are clipped to their bracket between
+    the last node inside and the first node outside.
+
+    Returns:
+        dict with ``a``, ``a_bracket``, ``c``, ``c_bracket``, ``c_over_a``,
+        ``c_over_a_bracket`` (c/a at the two ends of the brackets, widest
+        range) and the node-based ``a_nodes``, ``c_nodes`` of :func:`zones`.
+    """
+    order = np.argsort(contact["x_ref"][:, 0])
+    x = contact["x_ref"][order, 0]
+    pN = contact["p_N"][order]
+    pT = contact["p_T"][order]
+    st = contact["status"][order]
+    closed = st != "open"
+    stick = st == "stick"
+    a, ab = _edge(x, closed, np.where(closed, pN, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(stick & (pN > 0), 1.0 - np.abs(pT) / (mu * pN), 0.0) if mu > 0 else np.ones_like(x)
+    c, cb = _edge(x, stick, q)
+    a_n, c_n = zones(contact)
+    ratio = c / a if a > 0 else 0.0
+    lo = cb[0] / ab[1] if ab[1] > 0 else 0.0
+    hi = cb[1] / ab[0] if ab[0] > 0 else 0.0
+    return {"a": a, "a_bracket": list(ab), "c": c, "c_bracket": list(cb), "c_over_a": ratio,
+            "c_over_a_bracket": [lo, hi], "a_nodes": a_n, "c_nodes": c_n}
 
 
 def load_increments(solution) -> list[int]:
@@ -73,53 +137,75 @@ def load_increments(solution) -> list[int]:
 
 
 def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd_check: bool = True,
-        sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="superlu") -> dict:
+        sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="superlu",
+        size: float = 20.0, zone: float = 1.5, finite_strain: bool = False,
+        force_size: bool = False) -> dict:
     """Solve the frictional Hertz benchmark with path-dependent DDM sensitivities.
 
-    Writes ``contact_P{1,2,3}.csv`` (``x_ref, x, p_N, p_T, dp_N_dR, dp_T_dR, status``),
-    ``pressure.png`` / ``friction.png`` (paper Fig. 5), ``normalised.png`` /
-    ``normalised_sensitivity.png`` (Fig. 6) and ``summary.json`` into ``out``.
-    Returns the summary. The FD check re-runs the whole load path at phi +- h,
+    Writes ``contact_P{1,2,3}.csv`` (``x_ref, x, p_N, p_T, dp_N_d<name>,
+    dp_T_d<name>, status``), ``pressure.png`` / ``friction.png`` (paper Fig. 5),
+    ``normalised.png`` / ``normalised_sensitivity.png`` (Fig. 6),
+    ``hertz_friction_P{1,2,3}.vtu``, the series ``hertz_friction.pvd`` (one VTU
+    per increment) and ``summary.json`` into ``out``. Returns the summary.
+    The FD check re-runs the whole load path at phi +- h,
     h = ``fd_step`` max(|phi|, 1): smaller steps are limited by the Newton
     tolerance (error ~ rtol / h), much larger ones change stick/slip states.
+    On a Newton failure the converged increments and ``summary.json`` (status
+    ``failed``) are written before the error is re-raised.
     """
-    import time
-    from pathlib import Path
-
     from .. import io, plots
+    from ..errors import ConvergenceError
     from ..newton import NewtonOptions
+    from ..runner import Timer, max_rel_diff, prepare_output, summary_header, write_partial
     from ..sensitivity import finite_difference
     from ..solve import solve
 
-    if steps < 3 or steps % 3:
+    clock = Timer()
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 3 or steps % 3:
         raise InputError(f"--steps must be a positive multiple of 3 (P1, P2, P3 = P/3, 2P/3, P "
-                         f"must be increments), got {steps}")
+                         f"must be increments), got {steps!r}")
     sensitivities = list(dict.fromkeys(["R", *sensitivities]))
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_output(out)
     # rtol 1e-10 leaves margin above the residual's round-off floor at the small early loads
     options = options or NewtonOptions(rtol=1e-10)
-    pb = hertz_friction_problem(params, refine=refine)
+    pb = hertz_friction_problem(params, refine=refine, size=size, zone=zone,
+                                finite_strain=finite_strain, force_size=force_size)
     v = pb.params
     h = hertz.fine_cell_size(pb)
-    t0 = time.perf_counter()
-    sol = solve(pb, steps=steps, sensitivities=sensitivities, options=options, solver=solver)
-    t_solve = time.perf_counter() - t0
+    mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": h,
+                 "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
+    t0 = clock()
+    try:
+        sol = solve(pb, steps=steps, sensitivities=sensitivities, options=options, solver=solver,
+                    label="base")
+    except ConvergenceError as e:
+        if e.partial is not None and e.partial.increments:
+            io.write_pvd(e.partial, out / "hertz_friction.pvd")
+        write_partial(out, e.partial, "hertz_friction", str(e), {"params": v, "mesh": mesh_info})
+        raise
+    t_solve = clock() - t0
 
     levels = []
     for i, k in enumerate(load_increments(sol), start=1):
         P = v["P"] * sol.increments[k].t
         an = hertz.analytical(P, v["R"], v["E"], v["nu"])
         c = sol.contact(k)
-        a_fe, c_fe = zones(c)
-        cols = {"x_ref": c["x_ref"][:, 0], "x": c["x"][:, 0], "p_N": c["p_N"], "p_T": c["p_T"] + 0.0,
-                "dp_N_dR": c["dp_N_dR"], "dp_T_dR": c["dp_T_dR"] + 0.0, "status": c["status"]}
+        z = stick_zone(c, v["mu"])
+        cols = {"x_ref": c["x_ref"][:, 0], "x": c["x"][:, 0], "p_N": c["p_N"], "p_T": c["p_T"] + 0.0}
+        for n in sensitivities:
+            cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
+            cols[f"dp_T_d{n}"] = c[f"dp_T_d{n}"] + 0.0
+        cols["status"] = c["status"]
         io.write_csv(out / f"contact_P{i}.csv", cols)
         io.write_vtu(sol, out / f"hertz_friction_P{i}.vtu", k)
-        levels.append({"P": P, "increment": k, "a": a_fe, "c": c_fe, "c_over_a": c_fe / a_fe,
+        levels.append({"P": P, "increment": k, "a": z["a"], "c": z["c"], "c_over_a": z["c_over_a"],
+                       "a_bracket": z["a_bracket"], "c_bracket": z["c_bracket"],
+                       "c_over_a_bracket": z["c_over_a_bracket"],
+                       "a_nodes": z["a_nodes"], "c_nodes": z["c_nodes"],
                        "a_hertz": an["a"], "p0_hertz": an["p0"], "p0": float(c["p_N"].max()),
                        "n_stick": int((c["status"] == "stick").sum()),
                        "n_slip": int((c["status"] == "slip").sum()), "contact": c})
+    io.write_pvd(sol, out / "hertz_friction.pvd")
     _figures(out, levels, v, plots)
 
     ddm_fd = {}
@@ -136,22 +222,26 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
 
             fd = finite_difference(pb, n, q, steps=steps, options=options, rel_step=fd_step, solver=solver)
             c3 = levels[-1]["contact"]
-            ddm = np.concatenate([c3[f"dp_N_d{n}"][inner], c3[f"dp_T_d{n}"][inner]])
-            ddm_fd[n] = float(np.max(np.abs(ddm - fd)) / np.max(np.abs(ddm)))
+            ddm_fd[n] = max_rel_diff(np.concatenate([c3[f"dp_N_d{n}"][inner], c3[f"dp_T_d{n}"][inner]]), fd)
 
-    summary = {
+    summary = summary_header("converged", sol)
+    summary.update({
         "params": v,
         "steps": steps,
-        "mesh": {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "dofs": int(sol.model.n_dof),
-                 "contact_cell_size": h},
+        "finite_strain": finite_strain,
+        "solver": getattr(solver, "name", solver),
+        "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "loads": [{k: val for k, val in lv.items() if k != "contact"} for lv in levels],
         "c_over_a": [lv["c_over_a"] for lv in levels],
+        "c_over_a_bracket": [lv["c_over_a_bracket"] for lv in levels],
         "newton_iterations": sol.newton_iterations,
         "newton_residuals": [inc.newton.residuals for inc in sol.increments],
-        "ddm_vs_fd_rel_diff_P3": ddm_fd,
+        "ddm_vs_fd_rel_diff_P3": ddm_fd if fd_check else "not computed (--no-fd)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,
-    }
+        "time_wall_s": clock(),
+    })
+    summary["warnings"] = list(sol.warnings)
     io.write_json(out / "summary.json", summary)
     return summary
 

@@ -1,0 +1,152 @@
+"""Checks that turn a silently non-physical result into a warning or an error.
+
+Each check is cheap next to a Newton iteration. Warnings are logged on the
+``signorini`` logger, raised as :class:`~signorini.errors.SignoriniWarning`
+and kept in ``Solution.warnings`` (the command-line runs copy them into
+``summary.json``); conditions under which the problem is undefined raise
+:class:`~signorini.errors.InputError`.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+
+import numpy as np
+
+from ._jax import jax, jnp
+from .errors import InputError, SignoriniWarning
+from .obstacles import Circle
+
+log = logging.getLogger("signorini")
+
+#: a contact zone with fewer closed nodes than this is poorly resolved
+MIN_CONTACT_NODES = 10
+#: a friction surface whose contact zone grows by more nodes than this in one
+#: increment (after the first) has a load path too coarse for its history
+MAX_NEW_CONTACT_NODES = 2
+
+
+def warn(solution, message: str) -> None:
+    """Log ``message``, raise it as a :class:`SignoriniWarning` and keep it in
+    ``solution.warnings`` (once)."""
+    if message in solution.warnings:
+        return
+    solution.warnings.append(message)
+    log.warning("warning: %s", message)
+    warnings.warn(message, SignoriniWarning, stacklevel=3)
+
+
+def duplicate_nodes(X: np.ndarray) -> np.ndarray:
+    """Indices of nodes that coincide with an earlier node (to 1e-12 of the mesh size)."""
+    if len(X) < 2:
+        return np.zeros(0, dtype=np.int64)
+    tol = 1e-12 * max(float(np.ptp(X, axis=0).max()), 1e-300)
+    key = np.round(X / tol).astype(np.int64) if tol > 0 else X
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return np.nonzero(first[inv.ravel()] != np.arange(len(X)))[0]
+
+
+def points_in_body(P: np.ndarray, X: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(n_points,) True where a point lies strictly inside some (convex, CCW) cell."""
+    x = X[cells]  # (n_cells, 4, 2)
+    e = np.roll(x, -1, axis=1) - x
+    out = np.zeros(len(P), bool)
+    for k, p in enumerate(P):
+        d = p[None, None, :] - x
+        cross = e[..., 0] * d[..., 1] - e[..., 1] * d[..., 0]
+        out[k] = bool(np.any(np.all(cross > 0, axis=1)))
+    return out
+
+
+def before_solve(model, params, solution) -> None:
+    """Mesh and obstacle checks at the start of a solve (t = 0)."""
+    X = np.asarray(model.reference(params))
+    dup = duplicate_nodes(X)
+    if dup.size:
+        warn(solution, f"{dup.size} duplicate node(s) (first: node {int(dup[0])} at "
+                       f"{X[dup[0]].round(6).tolist()}): coincident nodes that share no cell leave "
+                       "the mesh disconnected there; merge them (remove duplicates) unless this "
+                       "is intended")
+    w0 = jnp.zeros(model.n_dof)
+    for i, s in enumerate(model.surfaces):
+        obst = s.contact.obstacle
+        geo = obst.geometry(params, 0.0)
+        if isinstance(obst, Circle):
+            c = np.asarray(geo["c"])
+            if points_in_body(c[None, :], X, model.conn)[0]:
+                raise InputError(
+                    f"contact {s.contact.edges!r}: the centre {c.round(6).tolist()} of the circular "
+                    "obstacle lies inside the body at t = 0, where the gap and its normal are "
+                    "undefined; move the obstacle (centre, radius) outside the body")
+        g = np.asarray(model._fields(w0, params, 0.0, i)["gap"])
+        e = s.edges
+        h = float(np.linalg.norm(X[e[:, 1]] - X[e[:, 0]], axis=1).mean())
+        k = int(np.argmin(g))
+        if g[k] < -h:
+            warn(solution, f"contact {s.contact.edges!r}: the body starts inside the obstacle by "
+                           f"{-g[k]:.4g} at node {int(s.nodes[k])} (more than the mean contact cell "
+                           f"size {h:.3g}); the first increment must push it out, which is rarely "
+                           "what is meant: check the obstacle's position and the shape parameters")
+
+
+class IncrementChecks:
+    """Checks between consecutive converged increments (tunnelling, coarse paths)."""
+
+    def __init__(self, model, params, solution):
+        self.model = model
+        self.params = params
+        self.solution = solution
+        self.prev = None  # (t, x of the contact nodes, closed masks) per surface
+
+    def _snapshot(self, w, t):
+        m = self.model
+        X = np.asarray(m.reference(self.params))
+        u = np.asarray(w[: 2 * m.n_nodes]).reshape(-1, 2)
+        snap = []
+        for i, s in enumerate(m.surfaces):
+            f = m._fields(jnp.asarray(w), self.params, t, i)
+            snap.append((X[s.nodes] + u[s.nodes], np.asarray(f["p_N"]) > 0))
+        return t, snap
+
+    def after(self, w, t, n_inc: int) -> None:
+        m = self.model
+        now = self._snapshot(w, t)
+        if self.prev is not None:
+            t0, before = self.prev
+            for i, s in enumerate(m.surfaces):
+                x0, closed0 = before[i]
+                x1, closed1 = now[1][i]
+                obst = s.contact.obstacle
+                if isinstance(obst, Circle) and not m.linear_contact[i]:
+                    g0, g1 = obst.geometry(self.params, t0), obst.geometry(self.params, t)
+                    n0 = np.asarray(jax.vmap(obst.normal, (0, None))(jnp.asarray(x0), g0))
+                    n1 = np.asarray(jax.vmap(obst.normal, (0, None))(jnp.asarray(x1), g1))
+                    flip = np.nonzero(np.sum(n0 * n1, axis=1) < 0)[0]
+                    if flip.size:
+                        warn(self.solution,
+                             f"contact {s.contact.edges!r}: {flip.size} node(s) (first: node "
+                             f"{int(s.nodes[flip[0]])}) passed through the obstacle in increment "
+                             f"{n_inc} (t = {t0:.4g} -> {t:.4g}); the result is not physical: use "
+                             "more load increments")
+                if getattr(s.contact.method, "has_history", False):
+                    new = int(np.sum(closed1 & ~closed0))
+                    if new > MAX_NEW_CONTACT_NODES and closed0.any():
+                        warn(self.solution,
+                             f"contact {s.contact.edges!r}: the contact zone grew by {new} nodes in "
+                             f"increment {n_inc} (t = {t0:.4g} -> {t:.4g}); with friction the "
+                             "history of the nodes that close within one increment is not resolved "
+                             f"(more than {MAX_NEW_CONTACT_NODES} per increment), so stick and slip "
+                             "zones can be wrong: use more load increments")
+        self.prev = now
+
+    def final(self) -> None:
+        if self.prev is None:
+            return
+        for i, s in enumerate(self.model.surfaces):
+            n = int(self.prev[1][i][1].sum())
+            if 0 < n < MIN_CONTACT_NODES:
+                warn(self.solution,
+                     f"contact {s.contact.edges!r}: the contact zone holds only {n} closed node(s) "
+                     f"at the end (fewer than {MIN_CONTACT_NODES}); pressures and their "
+                     "sensitivities are poorly resolved: refine the mesh where contact occurs")

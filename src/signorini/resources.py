@@ -1,0 +1,68 @@
+"""Estimates of a run's size before it is built, and a guard against runs the
+machine cannot hold.
+
+The peak-memory model is fitted to measurements of the Hertz benchmark with
+SciPy's SuperLU on 2 cores (``benchmarks/bench_hertz.py``: 0.4 GB at 5k DOFs,
+0.9 GB at 56k, 2.7 GB at 225k); it grows a little faster than linearly, like
+the fill-in of a sparse LU of a 2-D mesh. It is an estimate, printed as one.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+
+from .errors import ResourceError
+
+log = logging.getLogger("signorini")
+
+GB = 1024.0**3
+
+
+def estimated_peak_memory(n_dof: int) -> float:
+    """Estimated peak resident memory in bytes of a solve with ``n_dof`` unknowns."""
+    n = max(int(n_dof), 1)
+    return (0.5 + 1.1e-5 * n * (n / 2.0e5) ** 0.25) * GB
+
+
+def available_memory() -> float | None:
+    """Memory available to this process in bytes (Linux ``MemAvailable``, else None)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_size(n_dof: int, *, force: bool = False, what: str = "this run") -> float:
+    """Log the estimated size of a run and refuse it if it cannot fit in memory.
+
+    Args:
+        n_dof: number of unknowns (displacements + multipliers).
+        force: run anyway (the caller insists; a warning is logged).
+        what: name of the run in the messages.
+
+    Returns:
+        The estimated peak memory in bytes.
+
+    Raises:
+        ResourceError: the estimate exceeds the available memory and ``force`` is False.
+    """
+    need = estimated_peak_memory(n_dof)
+    have = available_memory()
+    log.info("%s: %d unknowns, estimated peak memory %.2g GB (%s available)", what, n_dof,
+             need / GB, "unknown" if have is None else f"{have / GB:.3g} GB")
+    if have is not None and need > have:
+        msg = (f"{what} has {n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of memory, "
+               f"more than the {have / GB:.3g} GB available")
+        if not force:
+            raise ResourceError(msg + "; use a coarser mesh (smaller --refine) or insist with "
+                                "--force-size (API: force_size=True)")
+        log.warning("warning: %s; running anyway (forced)", msg)
+    return need

@@ -1,0 +1,90 @@
+"""What every command-line run shares: an output directory checked before any
+work, a ``summary.json`` with the run's status, reason and warnings, and the
+converged increments written even when a later one fails.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import io
+from .errors import InputError
+
+log = logging.getLogger("signorini")
+
+
+def prepare_output(out) -> Path:
+    """Create (if needed) and check the output directory before any solve.
+
+    Raises:
+        InputError: ``out`` is empty, names an existing file, or is not writable.
+    """
+    if out is None or str(out).strip() == "":
+        raise InputError("the output directory is empty; give a directory name (--out DIR)")
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"--out {str(out)!r} is an existing file, not a directory; choose another "
+                         "name or remove the file")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f".signorini-write-test-{os.getpid()}"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise InputError(f"cannot write into the output directory {str(out)!r} ({e.strerror or e}); "
+                         "choose a writable location") from None
+    return path
+
+
+def summary_header(status: str, solution=None, reason: str = "") -> dict:
+    """The keys every ``summary.json`` starts with."""
+    head = {"status": status}
+    if reason:
+        head["reason"] = reason
+    head["warnings"] = list(getattr(solution, "warnings", []) or [])
+    if solution is not None and solution.increments:
+        head["load_factor_reached"] = float(solution.increments[-1].t)
+        head["converged_increments"] = len(solution.increments)
+    return head
+
+
+def write_partial(out: Path, solution, stem: str, reason: str, extra: dict | None = None) -> dict:
+    """After a failed solve: write what converged (VTU series, last contact table)
+    and ``summary.json`` with ``"status": "failed"`` and the reason."""
+    summary = summary_header("failed", solution, reason)
+    written = []
+    if solution is not None and solution.increments:
+        try:
+            written.append(str(io.write_vtu(solution, out / f"{stem}_partial.vtu").name))
+            c = solution.contact() if solution.model.surfaces else None
+            if c is not None:
+                cols = {"x_ref": c["x_ref"][:, 0], "x": c["x"][:, 0], "p_N": c["p_N"],
+                        "p_T": c["p_T"] + 0.0}
+                if "status" in c:
+                    cols["status"] = c["status"]
+                written.append(str(io.write_csv(out / "contact_partial.csv", cols).name))
+        except Exception as e:  # noqa: BLE001 - the failure report must still be written
+            log.warning("warning: could not write the converged increments: %s", e)
+    summary["files"] = written
+    summary.update(extra or {})
+    io.write_json(out / "summary.json", summary)
+    return summary
+
+
+def max_rel_diff(ddm: np.ndarray, fd: np.ndarray) -> float:
+    """max |DDM - FD| / max |DDM| (the comparison every command reports)."""
+    scale = float(np.max(np.abs(ddm))) if np.size(ddm) else 0.0
+    return float(np.max(np.abs(ddm - fd)) / scale) if scale > 0 else float(np.max(np.abs(fd), initial=0.0))
+
+
+class Timer:
+    def __init__(self):
+        self.t0 = time.perf_counter()
+
+    def __call__(self) -> float:
+        return time.perf_counter() - self.t0
