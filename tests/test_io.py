@@ -68,3 +68,111 @@ def test_vtu_has_fields_and_sensitivities(tmp_path):
     stress, dstress = sol.stress()
     assert np.allclose(back.cell_data["cauchy_stress"][0].reshape(-1, 3, 3), stress)
     assert np.allclose(back.cell_data["dcauchy_stress_dR"][0].reshape(-1, 3, 3), dstress["R"])
+
+
+# ------------------------------------------------------------- read_mesh errors
+
+def test_read_missing_file(tmp_path):
+    with pytest.raises(sg.InputError, match=r"nowhere\.msh: mesh file not found.*check the file name"):
+        read_mesh(tmp_path / "nowhere.msh")
+
+
+def test_read_empty_file(tmp_path):
+    (tmp_path / "empty.msh").write_text("")
+    with pytest.raises(sg.InputError, match=r"empty\.msh: the mesh file is empty; write the mesh again"):
+        read_mesh(tmp_path / "empty.msh")
+
+
+@pytest.mark.parametrize("name, content", [
+    ("garbage.msh", b"this is not a mesh\n1 2 3\n"),
+    ("garbage.vtu", b"<VTKFile>broken"),
+    ("garbage.vtk", b"\x00\x01\x02 binary junk"),
+    ("truncated.msh", b"$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n"),
+])
+def test_read_garbage_file(tmp_path, capfd, name, content):
+    (tmp_path / name).write_bytes(content)
+    with pytest.raises(sg.InputError) as err:
+        read_mesh(tmp_path / name)
+    msg = str(err.value)
+    assert msg.startswith(str(tmp_path / name)) and "not a readable mesh file" in msg, msg
+    assert "gmsh" in msg  # says what to do
+    out, errtext = capfd.readouterr()
+    assert "Error" not in out + errtext  # meshio's console output is captured, not printed
+
+
+def test_read_unknown_extension_and_directory(tmp_path):
+    (tmp_path / "body.geo").write_text("Point(1) = {0, 0, 0};\n")
+    with pytest.raises(sg.InputError, match=r"body\.geo: unknown mesh file extension '\.geo'.*\.msh"):
+        read_mesh(tmp_path / "body.geo")
+    (tmp_path / "d.msh").mkdir()
+    with pytest.raises(sg.InputError, match="is a directory"):
+        read_mesh(tmp_path / "d.msh")
+
+
+def test_read_rejects_non_planar(tmp_path):
+    m = sg.rectangle(np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+    meshio.Mesh(np.column_stack([m.nodes, m.nodes[:, 0]]), [("quad", m.cells)]).write(
+        tmp_path / "tilted.vtu")
+    with pytest.raises(sg.InputError, match="not planar"):
+        read_mesh(tmp_path / "tilted.vtu")
+
+
+def test_read_drops_orphan_nodes_and_merges_group_blocks(tmp_path):
+    """gmsh writes a node for every geometry point (e.g. an arc centre) and one
+    cell block per curve; unused nodes are dropped and a physical group made of
+    several curves becomes one set."""
+    m = sg.rectangle(np.linspace(0, 2, 5), np.linspace(0, 1, 3))
+    pts = np.vstack([[[5.0, 5.0]], m.nodes])  # orphan node 0, all others shifted by one
+    top = m.edge_sets["top"] + 1
+    mesh = meshio.Mesh(np.column_stack([pts, np.zeros(len(pts))]),
+                       [("quad", m.cells + 1), ("line", top[:2]), ("line", top[2:]), ("vertex", [[0]])],
+                       cell_data={"gmsh:physical": [np.ones(m.n_cells, int), [2, 2], [2, 2], [5]],
+                                  "gmsh:geometrical": [np.ones(m.n_cells, int), [1, 1], [2, 2], [3]]},
+                       field_data={"block": np.array([1, 2]), "top": np.array([2, 1]),
+                                   "centre": np.array([5, 0])})
+    mesh.write(tmp_path / "arc.msh", file_format="gmsh22", binary=False)
+    assert len(meshio.read(tmp_path / "arc.msh").points) == m.n_nodes + 1
+    r = read_mesh(tmp_path / "arc.msh")
+    assert r.n_nodes == m.n_nodes and np.allclose(r.nodes, m.nodes)
+    assert {tuple(e) for e in r.edge_set("top")} == {tuple(e) for e in m.edge_set("top")}
+    assert set(r.node_set("top")) == set(m.node_set("top"))
+    assert "centre" not in r.node_sets  # its only node is not part of the body
+    # an edge set off the body is an error
+    mesh.cells.append(meshio.CellBlock("line", np.array([[0, 1]])))
+    mesh.cell_data = {k: v + [np.array([6])] for k, v in mesh.cell_data.items()}
+    mesh.field_data["spoke"] = np.array([6, 1])
+    mesh.write(tmp_path / "arc.msh", file_format="gmsh22", binary=False)
+    with pytest.raises(sg.InputError, match="edge set 'spoke' has nodes that belong to no quadrilateral"):
+        read_mesh(tmp_path / "arc.msh")
+
+
+# ------------------------------------------------------------- PVD time series
+
+def test_write_pvd_series(tmp_path):
+    import xml.etree.ElementTree as ET
+
+    m = sg.rectangle(np.linspace(0, 1, 4), np.linspace(0, 1, 4))
+    pb = sg.Problem(m, sg.LinearElastic("E", 0.3), {"E": 100.0, "q": 2.0},
+                    fixed=(sg.Fixed("bottom", 1), sg.Fixed("left", 0)),
+                    loads=(sg.Pressure("top", "q"),))
+    sol = sg.solve(pb, steps=3, sensitivities=["q"])
+    (tmp_path / "series").mkdir()
+    pvd = sg.io.write_pvd(sol, tmp_path / "series" / "run.pvd")
+    assert pvd == tmp_path / "series" / "run.pvd"
+    root = ET.parse(pvd).getroot()
+    assert root.tag == "VTKFile" and root.get("type") == "Collection"
+    ds = root.findall("./Collection/DataSet")
+    assert [float(d.get("timestep")) for d in ds] == pytest.approx([1 / 3, 2 / 3, 1.0])
+    assert [d.get("file") for d in ds] == ["run_0001.vtu", "run_0002.vtu", "run_0003.vtu"]
+    for i, d in enumerate(ds):
+        back = meshio.read(pvd.parent / d.get("file"))
+        assert np.allclose(back.point_data["displacement"][:, :2], sol.displacement(i))
+        assert "ddisplacement_dq" in back.point_data
+    assert sorted(p.name for p in pvd.parent.iterdir()) == [
+        "run.pvd", "run_0001.vtu", "run_0002.vtu", "run_0003.vtu"]
+    # a subset of increments; a bad index is an InputError
+    sg.io.write_pvd(sol, tmp_path / "last.pvd", increments=[-1])
+    ds = ET.parse(tmp_path / "last.pvd").getroot().findall("./Collection/DataSet")
+    assert [(d.get("file"), float(d.get("timestep"))) for d in ds] == [("last_0003.vtu", 1.0)]
+    with pytest.raises(sg.InputError, match="increment 7 does not exist"):
+        sg.io.write_pvd(sol, tmp_path / "bad.pvd", increments=[7])

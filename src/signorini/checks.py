@@ -80,13 +80,14 @@ def before_solve(model, params, solution) -> None:
                     "obstacle lies inside the body at t = 0, where the gap and its normal are "
                     "undefined; move the obstacle (centre, radius) outside the body")
         g = np.asarray(model._fields(w0, params, 0.0, i)["gap"])
-        e = s.edges
-        h = float(np.linalg.norm(X[e[:, 1]] - X[e[:, 0]], axis=1).mean())
         k = int(np.argmin(g))
+        e = s.edges
+        near = np.any(e == s.nodes[k], axis=1)  # the cells' edges at that node
+        h = float(np.linalg.norm(X[e[near, 1]] - X[e[near, 0]], axis=1).mean())
         if g[k] < -h:
             warn(solution, f"contact {s.contact.edges!r}: the body starts inside the obstacle by "
-                           f"{-g[k]:.4g} at node {int(s.nodes[k])} (more than the mean contact cell "
-                           f"size {h:.3g}); the first increment must push it out, which is rarely "
+                           f"{-g[k]:.4g} at node {int(s.nodes[k])} (more than the size {h:.3g} of "
+                           "its cells); the first increment must push it out, which is rarely "
                            "what is meant: check the obstacle's position and the shape parameters")
 
 
@@ -109,6 +110,10 @@ class IncrementChecks:
             snap.append((X[s.nodes] + u[s.nodes], np.asarray(f["p_N"]) > 0))
         return t, snap
 
+    def start(self, w) -> None:
+        """The state at t = 0 (the reference for the first increment)."""
+        self.prev = self._snapshot(w, 0.0)
+
     def after(self, w, t, n_inc: int) -> None:
         m = self.model
         now = self._snapshot(w, t)
@@ -129,7 +134,7 @@ class IncrementChecks:
                              f"{int(s.nodes[flip[0]])}) passed through the obstacle in increment "
                              f"{n_inc} (t = {t0:.4g} -> {t:.4g}); the result is not physical: use "
                              "more load increments")
-                if getattr(s.contact.method, "has_history", False):
+                if getattr(s.contact.method, "has_history", False) and n_inc > 1:
                     new = int(np.sum(closed1 & ~closed0))
                     if new > MAX_NEW_CONTACT_NODES and closed0.any():
                         warn(self.solution,

@@ -271,14 +271,17 @@ def _dispatch(args) -> int:
     elif args.command == "run":
         from . import problemfile
 
-        s = problemfile.run(args.file, args.out, solver=args.solver)
-        print(f"{args.file}: {s.get('status', 'done')}; results in {args.out}/")
-        return 0
+        s = problemfile.run(args.file, args.out, solver=args.solver, force_size=args.force_size)
+        print(f"{args.file}: {s['status']}, {s['increments']} increment(s), "
+              f"{s['mesh'].get('dofs', '?')} DOFs, Newton iterations {s['newton_iterations']}")
+        for name, r in s.get("responses", {}).items():
+            sens = ", ".join(f"d/d{k} {v:.6g}" for k, v in r.get("sensitivities", {}).items())
+            print(f"  {name} = {r['value']:.6g}" + (f"  ({sens})" if sens else ""))
     if s.get("warnings"):
         print(f"{len(s['warnings'])} warning(s), also in summary.json:", file=sys.stderr)
         for w in s["warnings"]:
             print(f"  - {w}", file=sys.stderr)
-    print(f"results in {args.out}/")
+    print(f"results in {args.out.rstrip('/')}/")
     return 0
 
 

@@ -1,17 +1,81 @@
-"""Writing results: VTU for ParaView (meshio), CSV tables, JSON summaries."""
+"""Reading meshes (gmsh and other meshio formats) and writing results: VTU and
+PVD time series for ParaView (meshio), CSV tables, JSON summaries."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io as _stdio
 import json
+import logging
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
+from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
 
 if TYPE_CHECKING:
     from .mesh import Mesh
+
+log = logging.getLogger("signorini")
+
+_MESH_HINT = ("signorini reads 2-D quadrilateral meshes, e.g. gmsh .msh (in gmsh: Recombine Surface, "
+              "then File > Export as .msh)")
+
+
+def _mesh_formats(path: Path) -> list[str]:
+    """meshio formats that match the file's extension (longest suffix first, as meshio)."""
+    ext, out = "", []
+    for suffix in reversed(path.suffixes):
+        ext = (suffix + ext).lower()
+        out += meshio.extension_to_filetypes.get(ext, [])
+    return out
+
+
+def _meshio_read(path: Path):
+    """``meshio.read`` with every failure turned into an :class:`InputError`.
+
+    meshio prints its errors and calls ``sys.exit`` when no reader accepts a
+    file; here each candidate format is tried with meshio's console output
+    captured (its warnings go to the ``signorini`` logger).
+    """
+    from .errors import InputError
+
+    if not path.exists():
+        where = "" if path.is_absolute() else f" (relative to the current directory {os.getcwd()})"
+        raise InputError(f"{path}: mesh file not found{where}; check the file name and path")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a mesh file; give the path of the mesh file")
+    formats = _mesh_formats(path)
+    if not formats:
+        known = ", ".join(sorted(meshio.extension_to_filetypes))
+        raise InputError(f"{path}: unknown mesh file extension {path.suffix or '(none)'!r}; use a mesh "
+                         f"format meshio knows ({known}); {_MESH_HINT}")
+    try:
+        size = path.stat().st_size
+    except OSError as e:
+        raise InputError(f"{path}: cannot access the mesh file ({e.strerror or e})") from None
+    if size == 0:
+        raise InputError(f"{path}: the mesh file is empty; write the mesh again ({_MESH_HINT})")
+    problems = []
+    for fmt in formats:
+        buf = _stdio.StringIO()
+        try:
+            with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
+                m = meshio.read(path, file_format=fmt)
+        except (Exception, SystemExit) as e:  # meshio exits when a reader gives up
+            detail = str(e) if not isinstance(e, SystemExit) else ""
+            detail = " ".join((buf.getvalue() + " " + detail).split()) or type(e).__name__
+            problems.append(f"as {fmt}: {detail}")
+            continue
+        for line in buf.getvalue().splitlines():
+            if line.strip():
+                log.warning("%s: meshio: %s", path, line.strip())
+        return m
+    raise InputError(f"{path}: not a readable mesh file ({'; '.join(problems)}); check that the file "
+                     f"is a complete mesh in the format of its extension. {_MESH_HINT}")
 
 
 def read_mesh(path) -> "Mesh":
@@ -21,12 +85,21 @@ def read_mesh(path) -> "Mesh":
     elements (gmsh ``$PhysicalNames``) becomes an edge set (oriented
     counter-clockwise from its cell) and a node set of the same name; named
     groups of vertex elements become node sets. Cells are renumbered
-    counter-clockwise if needed.
+    counter-clockwise if needed. Nodes that belong to no quadrilateral (gmsh
+    writes one for every geometry point, e.g. the centre of an arc) are
+    dropped and the remaining nodes renumbered in file order, since they
+    would carry no stiffness.
+
+    Raises:
+        InputError: the file is missing, empty, of an unknown format, not a
+            valid mesh, not planar, without quadrilaterals, or a set is not
+            on the boundary. The message names the file.
     """
     from .errors import InputError
     from .mesh import Mesh, signed_jacobians
 
-    m = meshio.read(path)
+    path = Path(path)
+    m = _meshio_read(path)
     quads = [c.data for c in m.cells if c.type == "quad"]
     if not quads:
         kinds = sorted({c.type for c in m.cells})
@@ -35,34 +108,69 @@ def read_mesh(path) -> "Mesh":
     other = sorted({c.type for c in m.cells} - {"quad", "line", "vertex"})
     if other:
         raise InputError(f"{path}: unsupported cell types {other}; only quad (+ line/vertex sets)")
-    nodes = np.asarray(m.points)[:, :2]
+    points = np.asarray(m.points, dtype=float)
+    if points.ndim != 2 or points.shape[1] < 2:
+        raise InputError(f"{path}: points have shape {points.shape}; expected 2-D or 3-D coordinates")
+    if points.shape[1] > 2 and np.ptp(points[:, 2]) > 1e-12 * max(np.ptp(points[:, :2]), 1e-300):
+        raise InputError(f"{path}: the mesh is not planar in the x-y plane (z varies from "
+                         f"{points[:, 2].min():.6g} to {points[:, 2].max():.6g}); signorini is 2-D, "
+                         "so draw the body in the z = 0 plane")
     cells = np.concatenate(quads).astype(np.int64)
+    # drop nodes that no quad uses and renumber (set data uses the same map)
+    used = np.zeros(len(points), bool)
+    used[cells.ravel()] = True
+    new = -np.ones(len(points), np.int64)
+    new[used] = np.arange(used.sum())
+    nodes = points[used, :2]
+    cells = new[cells]
     det = signed_jacobians(nodes, cells)
     flip = det.sum(axis=1) < 0
     cells[flip] = cells[flip][:, ::-1]
     names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
     phys = m.cell_data.get("gmsh:physical")
-    edge_sets, node_sets = {}, {"all": np.arange(len(nodes))}
+    edge_sets, node_sets = {}, {}
     if phys is not None:
-        probe = Mesh(nodes, cells)
+        try:
+            probe = Mesh(nodes, cells)
+        except InputError as e:
+            raise type(e)(f"{path}: {e}") from None
         boundary = {tuple(sorted(e)): tuple(e) for e in probe.boundary_edges()}
         for block, tags in zip(m.cells, phys):
             for tag in np.unique(tags):
                 name = names.get(int(tag), f"physical_{int(tag)}")
                 data = block.data[tags == tag]
+                if block.type == "line" and (~used[data]).any():
+                    raise InputError(f"{path}: edge set {name!r} has nodes that belong to no "
+                                     "quadrilateral; put the group on the meshed body's boundary")
+                if block.type == "vertex" and (~used[data]).any():
+                    log.warning("%s: point set %r: %d node(s) belong to no quadrilateral (e.g. an "
+                                "arc centre) and are left out of the set", path, name,
+                                int((~used[data]).sum()))
+                    data = data[used[data]]
+                    if not data.size:
+                        continue
+                data = new[data]
                 if block.type == "line":
                     edges = []
                     for a, b in data:
                         key = (min(a, b), max(a, b))
                         if key not in boundary:
-                            raise InputError(f"{path}: edge set {name!r} has edge ({a}, {b}) that is "
-                                             "not on the boundary of the quad mesh")
+                            xa, xb = (nodes[n].round(6).tolist() for n in (a, b))
+                            raise InputError(f"{path}: edge set {name!r} has the edge {xa}-{xb} that "
+                                             "is not on the boundary of the quad mesh; loads and "
+                                             "contact need boundary edges")
                         edges.append(boundary[key])
-                    edge_sets[name] = np.asarray(edges, dtype=np.int64)
-                    node_sets[name] = np.unique(data)
+                    # a group may span several blocks (one per gmsh entity): merge them
+                    edge_sets[name] = np.concatenate(
+                        [edge_sets.get(name, np.empty((0, 2), np.int64)), np.asarray(edges, np.int64)])
+                    node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
                 elif block.type == "vertex":
-                    node_sets[name] = np.unique(data)
-    return Mesh(nodes, cells, node_sets, edge_sets)
+                    node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
+    node_sets.setdefault("all", np.arange(len(nodes)))
+    try:
+        return Mesh(nodes, cells, node_sets, edge_sets)
+    except InputError as e:
+        raise type(e)(f"{path}: {e}") from None
 
 
 def _vec3(a):
@@ -106,6 +214,50 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     return path
 
 
+def write_pvd(solution, path, increments=None) -> Path:
+    """Write a ParaView time series: one VTU per converged increment and a PVD file.
+
+    Each increment ``k`` (1-based position in ``solution.increments``) is
+    written by :func:`write_vtu` as ``<stem>_<k:04d>.vtu`` in the directory of
+    the ``.pvd`` file; the PVD collection lists them (relative file names) with
+    ``timestep`` = the increment's load factor t. Open the ``.pvd`` in
+    ParaView to step through the load history.
+
+    Args:
+        solution: a :class:`~signorini.solution.Solution` (possibly the
+            ``partial`` of a :class:`~signorini.errors.ConvergenceError`).
+        path: the ``.pvd`` file to write (its directory must exist).
+        increments: indices into ``solution.increments`` to write (default: all).
+
+    Returns:
+        The path of the ``.pvd`` file.
+    """
+    from .errors import InputError
+
+    path = Path(path)
+    n = len(solution.increments)
+    if increments is None:
+        increments = range(n)
+    idx = []
+    for i in increments:
+        try:
+            idx.append(range(n)[i])
+        except (IndexError, TypeError):
+            raise InputError(f"write_pvd: increment {i!r} does not exist; the solution has {n} "
+                             "converged increment(s)") from None
+    lines = ['<?xml version="1.0"?>',
+             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+             "  <Collection>"]
+    for i in idx:
+        vtu = path.with_name(f"{path.stem}_{i + 1:04d}.vtu")
+        write_vtu(solution, vtu, i)
+        t = float(solution.increments[i].t)
+        lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(vtu.name)}/>')
+    lines += ["  </Collection>", "</VTKFile>", ""]
+    path.write_text("\n".join(lines))
+    return path
+
+
 def write_csv(path, columns: dict) -> Path:
     """Write equal-length 1-D arrays (or lists) as CSV columns, header = keys."""
     path = Path(path)
@@ -115,7 +267,7 @@ def write_csv(path, columns: dict) -> Path:
         wr = csv.writer(f)
         wr.writerow(keys)
         for r in rows:
-            wr.writerow([v if isinstance(v, str) else f"{float(v):.12g}" for v in r])
+            wr.writerow([v if isinstance(v, str) else f"{float(v) + 0.0:.12g}" for v in r])  # no -0
     return path
 
 

@@ -159,8 +159,17 @@ class Model:
             specs += c.specs()
         check_names(names_in(specs), p.params, "the problem definition")
         for s in specs:  # expressions are evaluated once here, before any JAX tracing
-            if callable(s):
-                resolve(s, p.params)
+            if isinstance(s, str):
+                continue
+            try:
+                v = np.asarray(resolve(s, p.params), dtype=float)
+            except (TypeError, ValueError):
+                raise InputError(f"a load, support, material or contact value is {s!r}, which is "
+                                 "not a number, a parameter name or a function of the "
+                                 "parameters") from None
+            if not np.all(np.isfinite(v)):
+                raise InputError(f"a load, support, material or contact value evaluates to {v} "
+                                 "(NaN or inf); every value must be a finite number")
 
     def check(self, params: dict) -> None:
         """Validate parameter values (positive modulus, radius, eps; no inverted element)."""

@@ -118,6 +118,7 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     w = np.zeros(model.n_dof)
     state_n = model.initial_state(w, params)
     state_dot = model.initial_state_sensitivity(params, names) if ddm is not None else None
+    inc_checks.start(w)
 
     t, dt_nominal = 0.0, 1.0 / steps
     dt, cuts, total_cuts = dt_nominal, 0, 0
