@@ -718,11 +718,9 @@ def _response_values(sol, problem: Problem, r: Response) -> dict:
         val = float(sol.displacement()[nodes, r.component].mean())
         sens = {n: float(sol.displacement_sensitivity(n)[nodes, r.component].mean()) for n in names}
     else:
-        # force of the supports on the body. Solution.reactions() returns the force of
-        # the body on the supports (R at the prescribed DOFs with the sign flipped;
-        # its docstring says the opposite), hence the minus signs.
-        val = -float(sol.reactions()[nodes, r.component].sum())
-        sens = {n: -float(sol.reaction_sensitivity(n)[nodes, r.component].sum()) for n in names}
+        # force of the supports on the body (Solution.reactions)
+        val = float(sol.reactions()[nodes, r.component].sum())
+        sens = {n: float(sol.reaction_sensitivity(n)[nodes, r.component].sum()) for n in names}
     return {"value": val, "sensitivities": sens}
 
 

@@ -21,9 +21,9 @@ class Increment:
         t: load factor at the end of the increment.
         w: (n_dof,) unknowns (displacements then multipliers).
         newton: the Newton log of the increment.
-        reactions: (n_prescribed,) residual at the prescribed DOFs (reaction forces,
-            sign: force exerted by the support on the body is ``-reactions``... see
-            :meth:`Solution.reactions`).
+        reactions: (n_prescribed,) residual R = f_int + f_contact - f_ext at the
+            prescribed DOFs, which is the force of the supports on the body
+            (equilibrium f_int + f_contact = f_ext + r).
         sens: parameter name -> dw/dphi (n_dof,).
         timing: DDM timings (factorisation, pseudo-load, back-substitution) in s.
         state: history data after the increment (path-dependent problems).
@@ -105,7 +105,7 @@ class Solution:
     def reactions(self, i: int = -1) -> np.ndarray:
         """(n_nodes, 2) reaction forces of the supports on the body (0 where free)."""
         r = np.zeros(2 * self.model.n_nodes)
-        r[self.model.prescribed] = -self._inc(i).reactions
+        r[self.model.prescribed] = self._inc(i).reactions  # R_p = f_int - f_ext = r
         return r.reshape(-1, 2)
 
     def reaction_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
@@ -126,10 +126,10 @@ class Solution:
             cases = m._cases(jnp.asarray(inc.w), self._jp, inc.t, state)
             _, d = jax.jvp(lambda w, p, st: m.residual(w, p, inc.t, st, cases)[m.prescribed],
                            (jnp.asarray(inc.w), self._jp, state), tang)
-            r[m.prescribed] = -np.asarray(d)
+            r[m.prescribed] = np.asarray(d)
             return r.reshape(-1, 2)
         _, d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))
-        r[m.prescribed] = -d[name]
+        r[m.prescribed] = d[name]
         return r.reshape(-1, 2)
 
     def state_before(self, i: int = -1):
