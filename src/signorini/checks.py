@@ -33,7 +33,8 @@ def warn(solution, message: str) -> None:
     if message in solution.warnings:
         return
     solution.warnings.append(message)
-    log.warning("warning: %s", message)
+    label = getattr(solution, "label", None)
+    log.warning("warning%s: %s", f" [{label}]" if label else "", message)
     warnings.warn(message, SignoriniWarning, stacklevel=3)
 
 

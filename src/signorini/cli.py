@@ -199,12 +199,22 @@ def _configure_logging(args) -> None:
     warnings.simplefilter("ignore", SignoriniWarning)  # already logged once
 
 
-class _IncrementFilter(logging.Filter):
-    """With progress bars, the per-increment INFO lines would only repeat the bar."""
+class _OnceFilter(logging.Filter):
+    """The finite-difference re-solves repeat the base run's warnings: show each once."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = set()
 
     def filter(self, record):
-        msg = str(record.msg)
-        return not (record.levelno == logging.INFO and msg.startswith("[") and "increment" in msg)
+        if record.levelno != logging.WARNING:
+            return True
+        text = record.getMessage()
+        key = text.split("]: ", 1)[-1] if text.startswith("warning [") else text
+        if key in self.seen:
+            return False
+        self.seen.add(key)
+        return True
 
 
 def main(argv=None) -> int:
@@ -214,11 +224,9 @@ def main(argv=None) -> int:
     from . import progress
 
     show = not (args.quiet or args.verbose) and sys.stderr.isatty()
-    flt = _IncrementFilter()
-    root = logging.getLogger()
-    if not args.verbose:
-        for hd in root.handlers:
-            hd.addFilter(flt)
+    flt = _OnceFilter()
+    logger = logging.getLogger("signorini")
+    logger.addFilter(flt)
     try:
         with progress.bars(show):
             return _dispatch(args)
@@ -231,8 +239,7 @@ def main(argv=None) -> int:
         print(f"signorini: error: {e}", file=sys.stderr)
         return 2
     finally:
-        for hd in root.handlers:
-            hd.removeFilter(flt)
+        logger.removeFilter(flt)
 
 
 def _fmt_fd(d) -> str:

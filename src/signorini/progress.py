@@ -39,7 +39,9 @@ def bars(on: bool = True):
         if on:
             from tqdm.contrib.logging import logging_redirect_tqdm
 
-            with logging_redirect_tqdm(loggers=[log]):
+            # the handlers that print (the root's, as the command line sets them up)
+            target = logging.root if logging.root.handlers else log
+            with logging_redirect_tqdm(loggers=[target]):
                 yield
         else:
             yield
@@ -60,20 +62,22 @@ class SolveProgress:
             from tqdm import tqdm
 
             self._bar = tqdm(total=1000, desc=f"{self.label:>10s}", file=sys.stderr, leave=False,
-                             bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {postfix}",
+                             bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {unit}", unit="",
                              dynamic_ncols=True)
 
     def increment(self, t: float, steplog) -> None:
         """A converged increment ending at load factor t."""
         self.n_inc += 1
         res = steplog.residuals[-1] if steplog.residuals else float("nan")
-        log.info("[%s] increment %d (t = %.4g of 1, nominal %d): %d Newton it, |R| %s", self.label,
-                 self.n_inc, t, self.steps, steplog.iterations,
-                 " ".join(f"{r:.1e}" for r in steplog.residuals))
+        # with a bar the line would only repeat it: DEBUG (shown by --verbose, which has no bars)
+        log.log(logging.DEBUG if self._bar is not None else logging.INFO,
+                "[%s] increment %d (t = %.4g of 1, nominal %d): %d Newton it, |R| %s", self.label,
+                self.n_inc, t, self.steps, steplog.iterations,
+                " ".join(f"{r:.1e}" for r in steplog.residuals))
         if self._bar is not None:
             self._bar.n = int(round(1000 * t))
-            self._bar.set_postfix_str(f"t={t:.3f} inc {self.n_inc} (nominal {self.steps}), "
-                                      f"{steplog.iterations} it, |R| {res:.1e}", refresh=False)
+            self._bar.unit = (f"t = {t:.3f}, increment {self.n_inc} (nominal {self.steps}), "
+                              f"{steplog.iterations} Newton it, |R| {res:.1e}")
             self._bar.refresh()
 
     def cut(self, t: float, reason: str, dt: float) -> None:

@@ -54,6 +54,7 @@ class Solution:
         self.log: list[StepLog] = []
         self.status = "running"
         self.reason = ""  # why the solve failed (status "failed")
+        self.label: str | None = None  # name of the solve in logs ("base", "FD R+", ...)
         self.warnings: list[str] = []  # suspicious results found on the way (see signorini.checks)
         self._jp = as_jax(params)
 

@@ -112,6 +112,7 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     weights = model.convergence_weights(params)
 
     sol = Solution(model, dict(problem.params), names)
+    sol.label = label
     checks.before_solve(model, params, sol)
     inc_checks = checks.IncrementChecks(model, params, sol)
     progress = SolveProgress(label, steps)
