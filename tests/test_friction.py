@@ -252,7 +252,7 @@ def test_hertz_friction_command(tmp_path, capsys):
                  "--set", "mu=0.5"]) == 0
     for i in (1, 2, 3):
         head = (out / f"contact_P{i}.csv").read_text().splitlines()[0]
-        assert head == "x_ref,x,p_N,p_T,dp_N_dR,dp_T_dR,status"
+        assert head == "x_ref,x,p_N,p_T,dp_N_dR,dp_T_dR,dp_N_dmu,dp_T_dmu,dp_N_dE,dp_T_dE,status"
     for f in ("pressure.png", "friction.png", "normalised.png", "normalised_sensitivity.png"):
         assert (out / f).stat().st_size > 0
     import meshio

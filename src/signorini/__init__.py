@@ -7,8 +7,9 @@ place where JAX is configured); it has no other side effect.
 
 from . import _jax  # noqa: F401  (float64 before anything else touches JAX)
 from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty, equivalent_areas
-from .errors import (ConvergenceError, InputError, InvertedElementError, SignoriniError,
-                     SingularTangentError, SolverError, UnknownParameterError)
+from .errors import (ConvergenceError, InputError, InvertedElementError, ResourceError,
+                     SignoriniError, SignoriniWarning, SingularTangentError, SolverError,
+                     UnknownParameterError)
 from .loads import Fixed, Pressure, Traction
 from .materials import LinearElastic, NeoHooke
 from .mesh import Mesh, graded_coordinates, rectangle
@@ -25,7 +26,7 @@ __version__ = "0.1.0"
 __all__ = [
     "AugmentedLagrangian", "Circle", "Contact", "ConvergenceError", "Coulomb", "Fixed", "InputError",
     "InvertedElementError", "LinearElastic", "Line", "Mesh", "NeoHooke", "NewtonOptions",
-    "Penalty", "Pressure", "Problem", "SignoriniError", "SingularTangentError", "Solution",
+    "Penalty", "Pressure", "Problem", "ResourceError", "SignoriniError", "SignoriniWarning", "SingularTangentError", "Solution",
     "SolverError", "Traction", "UnknownParameterError", "equivalent_areas", "finite_difference",
     "graded_coordinates", "rectangle", "solve",
 ]

@@ -15,7 +15,7 @@ material-point autodiff contracted with B, :func:`element.element_residual_tange
 (:meth:`Model.local_tangents`, assembled sparsely), the DDM pseudo-load is a
 JVP of ``residual`` in (params, w_p, state_n) (:mod:`signorini.sensitivity`).
 
-Path dependence (friction, THEORY 1 and 3): ``history_n`` holds, per contact
+Path dependence (friction, docs/theory.md §1 and §3): ``history_n`` holds, per contact
 surface, the slip coordinates s_n (nc,) of its nodes (None without friction).
 :meth:`Model.update_state` applies the pure update h(w, phi) after each
 converged increment and carries its sensitivity by a JVP; frictionless models
@@ -31,7 +31,7 @@ import numpy as np
 from . import element
 from ._jax import jax, jnp
 from .contact.area import check_edges, contact_nodes, equivalent_areas, nodal_normals
-from .errors import InputError
+from .errors import InputError, SignoriniError
 from .mesh import check_orientation
 from .obstacles import Linearized
 from .params import as_jax, check_names, names_in, resolve, unit_tangents
@@ -163,6 +163,8 @@ class Model:
                 continue
             try:
                 v = np.asarray(resolve(s, p.params), dtype=float)
+            except SignoriniError:
+                raise
             except (TypeError, ValueError):
                 raise InputError(f"a load, support, material or contact value is {s!r}, which is "
                                  "not a number, a parameter name or a function of the "
@@ -209,7 +211,7 @@ class Model:
     def _tangential_mask(self, s: Surface):
         """(nc,) 1.0 where a history (friction) node carries lam_T, 0.0 where its
         tangential displacement is prescribed (symmetry line: g_T would be
-        identically 0 and the stick row of lam_T zero, THEORY 3); None for
+        identically 0 and the stick row of lam_T zero, docs/theory.md §3); None for
         methods without history. "Tangential" = the prescribed component is closer
         to the body's reference tangent than to its normal (nominal mesh)."""
         if not getattr(s.contact.method, "has_history", False):
@@ -304,7 +306,7 @@ class Model:
 
     # ---------------------------------------------------------------- history
     def history(self, w, params, t):
-        """Pure history update h(w, phi) after convergence at t (THEORY 1, 3): the slip
+        """Pure history update h(w, phi) after convergence at t (docs/theory.md §1, §3): the slip
         coordinate s = s(x_S) of every node of a friction surface on the obstacle at
         t (linearised obstacle in small-strain runs); None for other surfaces."""
         X = self.reference(params)

@@ -4,7 +4,7 @@ All functions are pure JAX functions of the point ``x`` (2,) and the resolved
 geometry ``geo = obstacle.geometry(params, t)``, so they can be differentiated
 with respect to the position and to the obstacle's own parameters (radius,
 centre, ...). Normal ``n'`` points from the obstacle into the body; ``g >= 0``
-means separated. See THEORY.md section 6.
+means separated. See docs/theory.md §6.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Direct differentiation (DDM) sensitivities, paper eqs. 3-6 (THEORY section 1).
+"""Direct differentiation (DDM) sensitivities, paper eqs. 3-6 (docs/theory.md §1).
 
 After each converged increment, for all design parameters phi_k at once::
 

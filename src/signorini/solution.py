@@ -99,6 +99,8 @@ class Solution:
         return self.reference() + self.displacement(i)
 
     def multipliers(self, i: int = -1, surface: int = 0) -> np.ndarray:
+        """(nc, m) contact multipliers of a surface (m = 1 frictionless: lam_N,
+        m = 2 with friction: lam_N, lam_T; nominal tractions, lam_N <= 0)."""
         s = self._surface(surface)
         w = self._inc(i).w
         return w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
@@ -113,7 +115,7 @@ class Solution:
         """(n_nodes, 2) DDM sensitivity of :meth:`reactions` (0 where free).
 
         With history (friction) the residual also depends on the state before the
-        increment, so its tangent D state_n / D phi enters the JVP (THEORY 1)."""
+        increment, so its tangent D state_n / D phi enters the JVP (docs/theory.md §1)."""
         self._check_name(name)
         m = self.model
         r = np.zeros(2 * m.n_nodes)
@@ -151,6 +153,7 @@ class Solution:
             raise InputError(f"no sensitivity for {name!r}; solved with sensitivities={self.names}")
 
     def w_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
+        """(n_dof,) DDM sensitivity Dw/Dphi of all unknowns (displacements, multipliers)."""
         self._check_name(name)
         return self._inc(i).sens[name]
 
@@ -159,6 +162,7 @@ class Solution:
         return self.w_sensitivity(name, i)[: 2 * self.model.n_nodes].reshape(-1, 2)
 
     def multiplier_sensitivity(self, name: str, i: int = -1, surface: int = 0) -> np.ndarray:
+        """(nc, m) DDM sensitivity of :meth:`multipliers`."""
         s = self._surface(surface)
         wd = self.w_sensitivity(name, i)
         return wd[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)

@@ -2,7 +2,7 @@
 
 A comparator for the paper's claim (section 3.3): with Uzawa, the exact
 sensitivity is not one linear solve but an iteration that follows the outer
-multiplier loop (THEORY section 4)::
+multiplier loop (docs/theory.md §4)::
 
     K_UU^k  dU^{k+1} = -(dR_U/dLam . dLam^k + dR_U/dphi)          (one solve per outer iteration)
     dlam^{k+1} = chi (dlam^k + eps (grad g . dU^{k+1} + dg/dphi))    (chi = 1 on closed nodes)

@@ -1,4 +1,4 @@
-"""Coulomb friction by the Alart-Curnier augmented Lagrangian (THEORY section 3).
+"""Coulomb friction by the Alart-Curnier augmented Lagrangian (docs/theory.md §3).
 
 Per contact node S two multipliers are global unknowns: lam_N (<= 0, nominal
 normal traction) and lam_T (tangential traction). With the gaps
@@ -11,16 +11,16 @@ the friction-disc radius is rho = mu <lam^_N>_- and the pseudo-potential is
     l = (<lam^_N>_-^2 - lam_N^2) / (2 eps_N)
         + (lam^_T^2 - lam_T^2 - dist(lam^_T, [-rho, rho])^2) / (2 eps_T)
 
-(dist(y, [-rho, rho]) = <|y| - rho>: the pseudo-potential of THEORY 3). The node
+(dist(y, [-rho, rho]) = <|y| - rho>: the pseudo-potential of docs/theory.md §3). The node
 residual is the gradient of A_S l in (x_S, lam) *at fixed rho*; rho is computed
 outside that gradient and passed in, so the Jacobian taken by
 :class:`~signorini.model.Model` (``jax.jacfwd`` of :meth:`Coulomb.residual`)
 differentiates through rho and is the exact, unsymmetric tangent of the
-non-associated law (THEORY section 3, "JAX construction"). At convergence
+non-associated law (docs/theory.md §3.4). At convergence
 lam_N = min(lam^_N, 0) and lam_T = proj(lam^_T) = tau: Signorini and Coulomb
 hold exactly for any eps_N, eps_T > 0.
 
-Sign convention (THEORY section 0): the traction on the body is
+Sign convention (docs/theory.md §0): the traction on the body is
 -(lam_N n' + lam_T t'), so the reported tractions are p_N = -lam_N (pressure,
 >= 0) and p_T = -lam_T, the tangential traction on the body along the obstacle
 tangent t' (it opposes the slip increment g_T).
@@ -54,7 +54,7 @@ class Coulomb:
     coordinate after the previous converged increment, s_n, is history data
     (carried and differentiated by :class:`~signorini.model.Model`). Nodes whose
     tangential displacement is prescribed (a symmetry line) get no friction:
-    their lam_T equation is lam_T = 0 (THEORY section 3, symmetry axis).
+    their lam_T equation is lam_T = 0 (docs/theory.md §3.6).
 
     Attributes:
         mu: friction coefficient (>= 0).
@@ -113,7 +113,7 @@ class Coulomb:
     # -------------------------------------------------------- pseudo-potential
     def potential(self, x, lam, A, geo, obstacle, cp, hist, rho, case):
         """A_S l(x, lam; rho) with the disc radius rho and the case flags held
-        fixed (THEORY 3)."""
+        fixed (docs/theory.md §3)."""
         s_n, tangential, _ = self._hist(hist)
         closed, stick, positive = case
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
@@ -124,7 +124,7 @@ class Coulomb:
         return A * (l_n + jnp.where(tangential > 0, l_t, l_fixed))
 
     def residual(self, x, lam, A, geo, obstacle, cp, hist):
-        """(4,): contact force on x_S, then R_lamN, R_lamT (THEORY 3).
+        """(4,): contact force on x_S, then R_lamN, R_lamT (docs/theory.md §3).
 
         rho = mu <lam^_N>_- is evaluated here, outside the inner gradient, so the
         caller's Jacobian of this function includes d rho / d(x, lam_N).

@@ -1,4 +1,4 @@
-"""The inner problem of Uzawa's augmented-Lagrangian algorithm (THEORY section 4).
+"""The inner problem of Uzawa's augmented-Lagrangian algorithm (docs/theory.md §4).
 
 Uzawa keeps the multipliers lam^k of every contact node *frozen* while Newton
 solves for the displacements,

@@ -3,9 +3,11 @@
 Symmetric half model: block 0 <= x <= W, -H <= y <= 0, symmetry u_x = 0 on
 x = 0, uniform pressure on the bottom with resultant P/2, so the block is held
 only by the contact with the cylinder (centre (0, R), touching at the origin).
-The mesh is graded: uniform cells of size ~a/16 near the contact, growing
-geometrically away from it; the block is 20 a wide and deep so that it acts
-as a half-space.
+The mesh is graded: uniform cells of size ~a0/16 near the contact, growing
+geometrically away from it; the block is 20 a0 wide and deep so that it acts
+as a half-space. a0 is the Hertz half-width at the *nominal* parameter values
+(:data:`DEFAULTS`, or ``nominal=``): the mesh never depends on the values a
+run is made with, so finite differences of outputs equal the DDM.
 
 Design parameters: E, nu, P, R, eps and the shape parameter ``bump`` (the
 amplitude of a smooth ring-shaped crown on the top face that leaves the
@@ -30,7 +32,7 @@ DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 1.2, "R": 1.0}
 
 
 def analytical(P, R, E, nu) -> dict:
-    """Half-width a, peak pressure p0 and their R-derivatives (THEORY 8, paper eq. 22)."""
+    """Half-width a, peak pressure p0 and their R-derivatives (docs/theory.md §8, paper eq. 22)."""
     a = np.sqrt(4.0 * P * R * (1.0 - nu**2) / (np.pi * E))
     p0 = 2.0 * P / (np.pi * a)
     return {"a": a, "p0": p0, "da_dR": a / (2 * R), "dp0_dR": -p0 / (2 * R)}

@@ -1,4 +1,4 @@
-"""Plane-strain frictional Hertz problem (paper 5.2, THEORY 8).
+"""Plane-strain frictional Hertz problem (paper 5.2, docs/theory.md §8).
 
 The half model of :mod:`signorini.problems.hertz` (rigid cylinder of radius R
 on an elastic block, uniform pressure with resultant P/2 on the bottom,
