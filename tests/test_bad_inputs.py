@@ -383,3 +383,13 @@ def test_coarse_frictional_path_is_recorded():
     assert not any("grew by" in w for w in fine.warnings)
     ca = lambda s: hf.stick_zone(s.contact(), 0.3)["c_over_a"]
     assert ca(coarse) < 0.8 * ca(fine)  # the warned result is indeed wrong
+
+
+@pytest.mark.timeout(60)
+def test_tolerance_below_round_off_is_named(small):
+    """rtol = 1e-17 cannot be reached: Newton stalls at ~1e-14; cutting the step
+    would not help, so the error says which tolerance is reachable."""
+    with pytest.raises(ConvergenceError) as e:
+        sg.solve(small, options=sg.NewtonOptions(rtol=1e-17))
+    ours(e, "round-off floor", "use rtol >=")
+    assert len(e.value.partial.log) == 1  # no step cutting

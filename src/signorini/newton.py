@@ -91,10 +91,26 @@ class StepLog:
 class StepFailure(Exception):
     """An increment failed; ``fatal`` means cutting the step cannot help."""
 
-    def __init__(self, reason: str, fatal: bool = False):
+    def __init__(self, reason: str, fatal: bool = False, stagnated: bool = False):
         super().__init__(reason)
         self.reason = reason
-        self.fatal = fatal
+        self.fatal = fatal or stagnated
+        self.stagnated = stagnated  # at the round-off floor: the tolerance is unreachable
+
+
+#: iterations without progress near round-off before Newton is declared stagnated
+STAGNATION = 4
+
+
+def _stagnated(res: list[float], ref: float) -> bool:
+    """The last STAGNATION+1 residuals are all tiny (< 1e-9 ref) and none is less
+    than half the smallest before them: Newton only stirs round-off."""
+    if len(res) <= STAGNATION + 1:
+        return False
+    last = res[-(STAGNATION + 1):]
+    if max(last) > 1e-9 * ref:
+        return False
+    return min(last[1:]) > 0.5 * last[0]
 
 
 def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions,
@@ -127,6 +143,12 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         if norm <= max(options.rtol * ref, options.atol):
             steplog.converged = True
             return w, R, blocks
+        if _stagnated(steplog.residuals, ref):
+            floor = norm / ref
+            raise StepFailure(
+                f"Newton stagnated at |R| = {norm:.2e} ({floor:.1e} of the reference norm) for "
+                f"{STAGNATION} iterations: that is the round-off floor of this problem, so rtol = "
+                f"{options.rtol:g} cannot be reached; use rtol >= {10 * floor:.0e}", stagnated=True)
         if k == options.max_iter:
             raise StepFailure(f"no convergence in {options.max_iter} iterations")
         if norm > options.divergence * ref:

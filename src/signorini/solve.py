@@ -144,6 +144,9 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
                                         state_n, options, weights, ref, steplog)
         except StepFailure as e:
             steplog.reason = e.reason
+            if e.stagnated:
+                raise fail(f"at t={t_new:.6g}: {e.reason}. {len(sol.increments)} increments "
+                           "converged (kept in the error's .partial).") from None
             if e.fatal:
                 raise fail(_diagnose(model, w_trial, params, t_new, e.reason, len(sol.increments))) from None
             reached = (f"{len(sol.increments)} increments converged (kept in the error's .partial); "
