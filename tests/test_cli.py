@@ -45,3 +45,34 @@ def test_bad_input_gives_clear_error(tmp_path, capsys):
     assert "unknown parameter 'Q'" in err and "Traceback" not in err
     assert main(["hertz", "--out", str(tmp_path / "y"), "-q", "--set", "R=-1", "--no-fd"]) == 2
     assert "must be positive" in capsys.readouterr().err
+
+
+def test_run_command_on_the_shipped_example(tmp_path, capsys):
+    """`signorini run examples/block.toml`: the example of docs/problem-files.md."""
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "block.toml"
+    out = tmp_path / "block"
+    assert main(["run", str(example), "--out", str(out), "-q"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "converged" and s["increments"] == 2
+    assert (out / "block.pvd").exists() and (out / "contact.csv").exists()
+    p = s["responses"]["p_max"]
+    assert p["value"] > 0 and set(p["sensitivities"]) == {"R", "E", "W"}
+    assert "p_max =" in capsys.readouterr().out
+
+
+def test_help_and_version(capsys):
+    import pytest
+
+    import signorini
+
+    for argv in (["--version"], ["hertz", "--help"], ["hertz-friction", "--help"], ["run", "--help"]):
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        assert e.value.code == 0
+    text = capsys.readouterr().out
+    assert f"signorini {signorini.__version__}" in text
+    assert "mu = Coulomb friction coefficient" in text  # the --set names of hertz-friction
+    assert "--zone-width" in text and "(default: 20.0)" in text
+    assert ":func:" not in text and "``" not in text  # no raw reStructuredText
