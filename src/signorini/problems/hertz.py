@@ -213,7 +213,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
     io.write_csv(out / "contact.csv", cols)
     io.write_vtu(sol, out / "hertz.vtu")
-    if steps > 1 and hasattr(io, "write_pvd"):
+    if steps > 1:
         io.write_pvd(sol, out / "hertz.pvd")
 
     ddm_fd = {}
