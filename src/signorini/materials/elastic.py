@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ._jax import jax, jnp
-from .errors import InputError
-from .params import Spec, resolve
+from .._jax import jax, jnp
+from ..errors import InputError
+from ..params import Spec, resolve
 
 
 def det_minus_one(H):
@@ -45,9 +45,20 @@ class _Elastic:
         E, nu = mp["E"], mp["nu"]
         return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
 
+    #: history entries per material point (hyperelastic: none)
+    n_state = 0
+
     def first_piola(self, H, mp):
         """P = dW/dF = dW/dH."""
         return jax.grad(self.energy)(H, mp)
+
+    def initial_state(self):
+        """(n_state,) history at the start of the load path."""
+        return jnp.zeros(0)
+
+    def update(self, H, h_n, mp):
+        """(P, h): the stress of the energy and the (empty) history, unchanged."""
+        return self.first_piola(H, mp), h_n
 
 
 @dataclass(frozen=True)
