@@ -1,19 +1,34 @@
-"""Isoparametric 4-node quadrilateral, 2x2 Gauss quadrature, plane strain.
+"""Isoparametric 4-node quadrilateral: quadrature, formulations, element kernels.
 
-The element is described by its energy; residual and tangent come from JAX:
-``residual = grad(energy)``, ``tangent = jacfwd(residual)``.
+The element is written once for every kinematics (plane strain,
+axisymmetric: :mod:`signorini.kinematics`), formulation (:class:`Standard`
+2x2 Gauss, :class:`FBar` = selective reduced integration of the volume change)
+and material (``update(H, h_n, mp) -> (P, h)``, :mod:`signorini.materials`):
+
+    r_e = sum_g w_g P(Hbar_g, h_n,g) : dHbar_g/du_e       (a VJP of u_e -> Hbar)
+
+with the history h_n of each Gauss point as input and the updated history as
+output. The tangent is JAX's derivative of r_e: for the standard formulation
+(H linear in u_e) autodiff is applied at the material point only,
+K_e = sum_g w_g B^T C B with C = dP/dH; for F-bar the whole element residual
+is differentiated forward (Hbar is nonlinear in u_e).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ._jax import jax, jnp
+from .kinematics import PLANE_STRAIN
+from .materials import det_minus_one
 
 _G = 1.0 / np.sqrt(3.0)
 #: Gauss points (4, 2) in the parent square and their weights (4,).
 GAUSS_POINTS = np.array([[-_G, -_G], [_G, -_G], [_G, _G], [-_G, _G]])
 GAUSS_WEIGHTS = np.ones(4)
+N_GAUSS = 4
 _CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 
 
@@ -29,74 +44,166 @@ def shape_gradients(xi):
     return jnp.stack([dxi, deta], axis=1)
 
 
-#: dN/dxi at the Gauss points, (4 gauss, 4 nodes, 2).
+#: N and dN/dxi at the Gauss points, (4 gauss, 4 nodes) and (4 gauss, 4 nodes, 2).
+_N = np.stack([np.asarray(shape_functions(p)) for p in GAUSS_POINTS])
 _DN = np.stack([np.asarray(shape_gradients(p)) for p in GAUSS_POINTS])
+#: the same at the centroid (1 point)
+_N0 = np.asarray(shape_functions(np.zeros(2)))[None]
+_DN0 = np.asarray(shape_gradients(np.zeros(2)))[None]
+
+
+def _gradients(DN, Xe):
+    J = jnp.einsum("gai,aj->gji", DN, Xe)  # (g, 2, 2): dX_j/dxi_i
+    detJ = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+    Jinv = jnp.stack([jnp.stack([J[:, 1, 1], -J[:, 0, 1]], -1),
+                      jnp.stack([-J[:, 1, 0], J[:, 0, 0]], -1)], -2) / detJ[:, None, None]  # dxi/dX
+    return jnp.einsum("gai,gij->gaj", DN, Jinv), detJ
 
 
 def reference_gradients(Xe):
-    """Shape-function gradients w.r.t. X and quadrature weights.
+    """Shape-function gradients w.r.t. X and parent quadrature weights.
 
     Args:
         Xe: (4, 2) reference nodal coordinates.
 
     Returns:
-        dNdX (4 gauss, 4 nodes, 2) and w (4,) = Gauss weight * det(dX/dxi).
+        dNdX (4 gauss, 4 nodes, 2) and w (4,) = Gauss weight * det(dX/dxi)
+        (per unit thickness; see the kinematics for the volume weights).
     """
-    J = jnp.einsum("gai,aj->gji", _DN, Xe)  # (g, 2, 2): dX_j/dxi_i
-    detJ = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-    Jinv = jnp.stack([jnp.stack([J[:, 1, 1], -J[:, 0, 1]], -1),
-                      jnp.stack([-J[:, 1, 0], J[:, 0, 0]], -1)], -2) / detJ[:, None, None]  # dxi/dX
-    dNdX = jnp.einsum("gai,gij->gaj", _DN, Jinv)
+    dNdX, detJ = _gradients(_DN, Xe)
     return dNdX, GAUSS_WEIGHTS * detJ
 
 
-def displacement_gradients(ue, Xe):
-    """Plane-strain displacement gradients H = du/dX (4 gauss, 3, 3) and weights (4,).
+@dataclass(frozen=True)
+class Standard:
+    """Full 2x2 Gauss integration of the displacement-based Q4."""
 
-    Materials receive H rather than F = I + H: a small-strain law needs H, and
-    recovering it as F - I would cost ~1e-13 relative accuracy in the residual
-    (a floor that tight Newton tolerances over many small increments hit).
+    name = "standard"
+    linear = True  # H at the Gauss points is linear in the nodal displacements
+
+    def modify(self, H, H0):
+        return H
+
+
+@dataclass(frozen=True)
+class FBar:
+    """F-bar Q4 (selective reduced integration of the volume change, docs/theory.md §7).
+
+    At each 2x2 Gauss point Fbar_g = (J0 / J_g)^(1/3) F_g, J0 = det F at the
+    centroid: the deviatoric part is integrated at the four points, the
+    volumetric part at one, which removes volumetric locking of (nearly)
+    incompressible plastic flow. For finite-strain materials.
     """
-    dNdX, w = reference_gradients(Xe)
-    H = jnp.einsum("ai,gaj->gij", ue, dNdX)  # (g, 2, 2)
-    return jnp.zeros((4, 3, 3)).at[:, :2, :2].set(H), w
+
+    name = "F-bar"
+    linear = False
+
+    def modify(self, H, H0):
+        # Hbar = c F - I = (c - 1)(I + H) + H, c - 1 = expm1((ln J0 - ln J) / 3): no cancellation
+        d = (jnp.log1p(det_minus_one(H0)) - jax.vmap(lambda h: jnp.log1p(det_minus_one(h)))(H)) / 3.0
+        cm1 = jnp.expm1(d)[:, None, None]
+        return cm1 * (jnp.eye(3) + H) + H
 
 
-def element_energy(ue, Xe, material, mp):
-    """Stored energy of one element: sum_g w_g W(H_g).
+STANDARD = Standard()
+FBAR = FBar()
+
+
+def gauss_gradients(ue, Xe, kinematics=PLANE_STRAIN, formulation=STANDARD):
+    """Displacement gradients (g, 3, 3) seen by the material at the Gauss points
+    (Hbar for F-bar) and the volume weights w (g,)."""
+    dNdX, detJ = _gradients(_DN, Xe)
+    H = kinematics.displacement_gradients(ue, Xe, _N, dNdX)
+    if not formulation.linear:
+        dNdX0, _ = _gradients(_DN0, Xe)
+        H0 = kinematics.displacement_gradients(ue, Xe, _N0, dNdX0)[0]
+        H = formulation.modify(H, H0)
+    return H, kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+
+
+def _history(material, hn):
+    return jnp.zeros((N_GAUSS, 0)) if hn is None else hn
+
+
+def element_update(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formulation=STANDARD):
+    """Internal forces (4, 2) and updated Gauss-point history (4, n_state) of one element.
 
     Args:
         ue: (4, 2) nodal displacements. Xe: (4, 2) reference coordinates.
-        material: a material object with ``energy(H, mp)``. mp: its parameter values.
+        material: a material with ``update(H, h_n, mp)``. mp: its parameter values.
+        hn: (4, n_state) history at the end of the previous increment (None: no history).
     """
-    H, w = displacement_gradients(ue, Xe)
-    return jnp.sum(w * jax.vmap(lambda h: material.energy(h, mp))(H))
+    hn = _history(material, hn)
+    w = gauss_gradients(ue, Xe, kinematics, formulation)[1]
+    H, vjp = jax.vjp(lambda u: gauss_gradients(u, Xe, kinematics, formulation)[0], ue)
+    P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
+    (r,) = vjp(w[:, None, None] * P)
+    return r, h
 
 
-def element_residual(ue, Xe, material, mp):
-    """Internal force vector (4, 2) = d(energy)/d(ue)."""
-    return jax.grad(element_energy)(ue, Xe, material, mp)
+def element_residual(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formulation=STANDARD):
+    """Internal force vector (4, 2) of one element."""
+    return element_update(ue, Xe, material, mp, hn, kinematics, formulation)[0]
 
 
-def element_residual_tangent(ue, Xe, material, mp):
-    """Internal forces (8,) and tangent (8, 8) of one element, node-major DOFs.
+def element_residual_tangent(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN,
+                             formulation=STANDARD):
+    """Internal forces (8,), tangent (8, 8) (node-major DOFs) and updated history.
 
-    Equal to ``grad`` / ``hessian`` of :func:`element_energy` (H is linear in ue),
-    but autodiff is applied at the material point only: P = dW/dH and
-    C = d2W/dH2 per Gauss point, then r = sum_g w_g B^T P, K = sum_g w_g B^T C B.
-    Differentiating the whole element in forward mode cost 3-4x more.
+    Standard formulation: H_g = B_g u_e is linear, so autodiff is applied at the
+    material point only: P and C = dP/dH per Gauss point (at fixed h_n), then
+    r = sum_g w_g B^T P, K = sum_g w_g B^T C B (differentiating the whole element
+    in forward mode cost 3-4x more). F-bar: forward-mode Jacobian of the residual.
     """
-    dNdX, w = reference_gradients(Xe)  # (g, a, 2), (g,)
-    H = jnp.zeros((4, 3, 3)).at[:, :2, :2].set(jnp.einsum("ai,gaj->gij", ue, dNdX))
-    P = jax.vmap(jax.grad(material.energy), (0, None))(H, mp)[:, :2, :2]  # (g, 2, 2)
-    C = jax.vmap(jax.hessian(material.energy), (0, None))(H, mp)[:, :2, :2, :2, :2]
-    r = jnp.einsum("g,gij,gaj->ai", w, P, dNdX).reshape(8)
-    K = jnp.einsum("g,gaj,gijkl,gbl->aibk", w, dNdX, C, dNdX).reshape(8, 8)
-    return r, K
+    hn = _history(material, hn)
+    if formulation.linear:
+        dNdX, detJ = _gradients(_DN, Xe)
+        w = kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+        rows, cols = (np.array(c) for c in zip(*kinematics.active))  # the non-zero components of H
+        hv = kinematics.displacement_gradients(ue, Xe, _N, dNdX)[:, rows, cols]  # (g, na)
+
+        def stress(v, h_):
+            P, h = material.update(jnp.zeros((3, 3)).at[rows, cols].set(v), h_, mp)
+            return P[rows, cols], (P[rows, cols], h)
+
+        C, (P, h) = jax.vmap(jax.jacfwd(stress, has_aux=True))(hv, hn)  # (g, na, na), (g, na)
+        r, K = _contract(w, dNdX, kinematics.hoop_functions(Xe, _N), P, C)
+        return r, K, h
+
+    def res(u):
+        r, h = element_update(u.reshape(4, 2), Xe, material, mp, hn, kinematics, formulation)
+        return r.reshape(8), (r.reshape(8), h)
+
+    K, (r, h) = jax.jacfwd(res, has_aux=True)(ue.reshape(8))
+    return r, K, h
 
 
-def element_stress(ue, Xe, material, mp):
-    """Cauchy stress (3, 3) averaged over the Gauss points of one element."""
-    H, w = displacement_gradients(ue, Xe)
-    sig = jax.vmap(lambda h: material.cauchy(h, mp))(H)
+def _contract(w, dNdX, hoop, P, C):
+    """r = sum_g w B^T P and K = sum_g w B^T C B without forming B.
+
+    The active components are (H11, H12, H21, H22[, H33]): H_ij = u_a,i dN_a/dX_j
+    in the plane, H33 = hoop_a u_a,r (axisymmetric). P (g, na), C (g, na, na).
+    """
+    P2 = P[:, :4].reshape(-1, 2, 2)
+    C4 = C[:, :4, :4].reshape(-1, 2, 2, 2, 2)
+    r = jnp.einsum("g,gij,gaj->ai", w, P2, dNdX)
+    K = jnp.einsum("g,gaj,gijkl,gbl->aibk", w, dNdX, C4, dNdX)
+    if hoop is not None:
+        r = r.at[:, 0].add(jnp.einsum("g,g,ga->a", w, P[:, 4], hoop))
+        K = K.at[:, 0, :, :].add(jnp.einsum("g,ga,gkl,gbl->abk", w, hoop,
+                                            C[:, 4, :4].reshape(-1, 2, 2), dNdX))
+        K = K.at[:, :, :, 0].add(jnp.einsum("g,gaj,gij,gb->aib", w, dNdX,
+                                            C[:, :4, 4].reshape(-1, 2, 2), hoop))
+        K = K.at[:, 0, :, 0].add(jnp.einsum("g,ga,g,gb->ab", w, hoop, C[:, 4, 4], hoop))
+    return r.reshape(8), K.reshape(8, 8)
+
+
+def element_stress(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formulation=STANDARD):
+    """Cauchy stress (3, 3) averaged over the Gauss points of one element (with
+    history: the stress of the update from h_n, i.e. at the end of the increment)."""
+    H, w = gauss_gradients(ue, Xe, kinematics, formulation)
+    if getattr(material, "n_state", 0):
+        sig = jax.vmap(lambda h, hs: material.cauchy(h, hs, mp))(H, _history(material, hn))
+    else:
+        sig = jax.vmap(lambda h: material.cauchy(h, mp))(H)
     return jnp.einsum("g,gij->ij", w, sig) / jnp.sum(w)

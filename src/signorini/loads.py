@@ -1,5 +1,8 @@
 """Prescribed displacements and boundary loads (dead loads, proportional stepping).
 
+Loads are integrated consistently with the kinematics (per unit thickness in
+plane strain, over the full circumference 2 pi R in axisymmetry).
+
 Every value is a parameter spec (see :mod:`signorini.params`) multiplied by a
 ``ramp(t)`` of the load factor t in [0, 1] (default: ``t``, proportional loading).
 """
@@ -11,12 +14,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._jax import jnp
+from ._jax import jax, jnp
+from .kinematics import PLANE_STRAIN
 from .params import Spec, resolve
 
 
 def _linear(t):
     return t
+
+
+def _edge_weights(X, edges, kinematics):
+    """(n_edges, 2): consistent weights int N_a dA of each edge end (per unit
+    thickness: L/2 each; axisymmetric: 2 pi L (2 R_a + R_b) / 6)."""
+    return jax.vmap(kinematics.edge_factors)(X[edges[:, 0]], X[edges[:, 1]])
 
 
 @dataclass(frozen=True)
@@ -50,15 +60,16 @@ class Pressure:
     def specs(self):
         return (self.value,)
 
-    def nodal_forces(self, X, edges: np.ndarray, params, t):
+    def nodal_forces(self, X, edges: np.ndarray, params, t, kinematics=PLANE_STRAIN):
         """(n_edges, 2 ends, 2) consistent nodal forces of the load at t."""
         d = X[edges[:, 1]] - X[edges[:, 0]]
+        L = jnp.linalg.norm(d, axis=1)
+        n = jnp.stack([d[:, 1], -d[:, 0]], axis=1) / L[:, None]  # outward unit normal
+        wts = _edge_weights(X, edges, kinematics)  # (n_edges, 2): int N_a dA
         q = resolve(self.value, params) * self.ramp(t)
         if self.resultant:
-            q = q / jnp.sum(jnp.linalg.norm(d, axis=1))
-        # traction -q n, n = (dy, -dx)/L, so the force per end is -q (dy, -dx) / 2
-        f = -0.5 * q * jnp.stack([d[:, 1], -d[:, 0]], axis=1)
-        return jnp.stack([f, f], axis=1)
+            q = q / jnp.sum(wts)  # value / loaded area
+        return -q * wts[:, :, None] * n[:, None, :]
 
 
 @dataclass(frozen=True)
@@ -85,11 +96,9 @@ class Traction:
     def specs(self):
         return tuple(self.value)
 
-    def nodal_forces(self, X, edges: np.ndarray, params, t):
-        d = X[edges[:, 1]] - X[edges[:, 0]]
-        L = jnp.linalg.norm(d, axis=1)
+    def nodal_forces(self, X, edges: np.ndarray, params, t, kinematics=PLANE_STRAIN):
+        wts = _edge_weights(X, edges, kinematics)
         tr = jnp.stack([jnp.asarray(resolve(v, params), dtype=float) for v in self.value]) * self.ramp(t)
         if self.resultant:
-            tr = tr / jnp.sum(L)
-        f = 0.5 * L[:, None] * tr[None, :]
-        return jnp.stack([f, f], axis=1)
+            tr = tr / jnp.sum(wts)
+        return wts[:, :, None] * tr[None, None, :]

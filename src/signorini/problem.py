@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError, UnknownParameterError
+from .kinematics import PLANE_STRAIN
 from .mesh import Mesh
 
 
@@ -34,6 +35,11 @@ class Problem:
             phi_k0 is the value of ``k`` in ``params`` when the mesh was made
             (``shape_nominal``, defaulting to ``params``).
         shape_nominal: nominal values of the shape parameters.
+        kinematics: :class:`~signorini.kinematics.PlaneStrain` (default) or
+            :class:`~signorini.kinematics.Axisymmetric`.
+        formulation: :class:`~signorini.element.Standard` (2x2 Gauss) or
+            :class:`~signorini.element.FBar`; default (None): F-bar for
+            materials with history (plasticity), standard otherwise.
     """
 
     mesh: Mesh
@@ -44,6 +50,8 @@ class Problem:
     contact: tuple = ()
     shape: Mapping[str, np.ndarray] = field(default_factory=dict)
     shape_nominal: Mapping[str, float] | None = None
+    kinematics: object = PLANE_STRAIN
+    formulation: object = None
 
     def __post_init__(self):
         object.__setattr__(self, "params", {k: float(v) for k, v in self.params.items()})
@@ -65,6 +73,19 @@ class Problem:
         object.__setattr__(self, "shape", shape)
         if self.shape_nominal is None:
             object.__setattr__(self, "shape_nominal", {k: self.params[k] for k in shape})
+
+    def resolved_formulation(self):
+        """The element formulation used (the default depends on the material)."""
+        from .element import FBAR, STANDARD
+
+        form = self.formulation
+        if form is None:
+            form = FBAR if getattr(self.material, "n_state", 0) else STANDARD
+        if not form.linear and not getattr(self.material, "finite_strain", True):
+            raise InputError(f"the {form.name} formulation is for finite-strain materials; "
+                             f"{type(self.material).__name__} is a small-strain law: use "
+                             "formulation=Standard() or a finite-strain material (NeoHooke)")
+        return form
 
     def with_params(self, **values: float) -> Problem:
         """A copy with some parameter values changed (names must exist)."""

@@ -61,7 +61,7 @@ class DDM:
         if m.prescribed.size:
             w_dot[:, m.prescribed] = np.asarray(self._wp_dot(params, t, e))
         # friction: the branch of every node fixed as in the converged tangent
-        cases = m._cases(w, params, t, state_n) if getattr(m, "has_history", False) else None
+        cases = m._cases(w, params, t, state_n) if m.has_contact_history else None
         P = np.asarray(self._pseudo(w, params, t, state_n, cases, jnp.asarray(w_dot), e, state_dot_n))
         t1 = time.perf_counter()
         w_dot[:, m.free] = -factor.solve(np.ascontiguousarray(P[:, m.free].T)).reshape(m.free.size, -1).T

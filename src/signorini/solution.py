@@ -119,16 +119,12 @@ class Solution:
         self._check_name(name)
         m = self.model
         r = np.zeros(2 * m.n_nodes)
-        if getattr(m, "has_history", False):
+        if m.has_history:
             inc = self._inc(i)
-            state, sdot = self.state_before(i)
-            k = self.names.index(name)
-            e = unit_tangents(self._jp, self.names)
-            tang = jax.tree_util.tree_map(lambda v: v[k], (jnp.asarray(np.stack(
-                [inc.sens[n] for n in self.names])), e, sdot))
-            cases = m._cases(jnp.asarray(inc.w), self._jp, inc.t, state)
-            _, d = jax.jvp(lambda w, p, st: m.residual(w, p, inc.t, st, cases)[m.prescribed],
-                           (jnp.asarray(inc.w), self._jp, state), tang)
+            state = self.state_before(i)[0]
+            cases = m._cases(jnp.asarray(inc.w), self._jp, inc.t, state) if m.has_contact_history else None
+            d = self.history_response(lambda w, p, t, st: m.residual(w, p, t, st, cases)[m.prescribed],
+                                      i)[1][name]
             r[m.prescribed] = np.asarray(d)
             return r.reshape(-1, 2)
         _, d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))
@@ -176,7 +172,7 @@ class Solution:
         """
         inc = self._inc(i)
         w = jnp.asarray(inc.w)
-        cache = getattr(self.model, "cache", {})
+        cache = self.model.cache
         if key is not None and key in cache:
             val_fn, jvp_fn = cache[key]
         else:
@@ -220,5 +216,34 @@ class Solution:
 
     def stress(self, i: int = -1):
         """Element-averaged Cauchy stress (n_cells, 3, 3) and its sensitivities."""
+        if self.model.n_state:  # plasticity: the stress also depends on the history
+            return self.history_response(lambda w, p, t, st: self.model.stresses(w, p, st), i,
+                                         key=("stress-history",))
         val, sens = self.response(lambda w, p, t: self.model.stresses(w, p), i, key=("stress",))
         return val, sens
+
+    def history_response(self, fn: Callable, i: int = -1, key=None):
+        """Value and DDM sensitivities of F = fn(w, params, t, state_n) for a quantity
+        that also depends on the history before increment i (stresses of a plastic
+        material, reactions with friction): the JVP carries D state_n / D phi too."""
+        inc = self._inc(i)
+        state, sdot = self.state_before(i)
+        w = jnp.asarray(inc.w)
+        cache = self.model.cache
+        if key is not None and key in cache:
+            val_fn, jvp_fn = cache[key]
+        else:
+            val_fn = jax.jit(fn)
+            jvp_fn = jax.jit(jax.vmap(lambda w, p, t, st, a, b, c: jax.jvp(
+                lambda w_, p_, s_: fn(w_, p_, t, s_), (w, p, st), (a, b, c))[1],
+                (None, None, None, None, 0, 0, 0)))
+            if key is not None:
+                cache[key] = (val_fn, jvp_fn)
+        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, inc.t, state))
+        if not self.names:
+            return val, {}
+        e = unit_tangents(self._jp, self.names)
+        wd = jnp.asarray(np.stack([inc.sens[n] for n in self.names]))
+        d = jvp_fn(w, self._jp, inc.t, state, wd, e, sdot)
+        return val, {n: jax.tree_util.tree_map(lambda v, k=k: np.asarray(v[k]), d)
+                     for k, n in enumerate(self.names)}

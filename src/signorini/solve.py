@@ -17,7 +17,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from ._jax import jax, jnp
-from .assembly import SparsityPattern
 from .errors import ConvergenceError, InputError, SingularTangentError
 from .linsolve import get_solver
 from .model import Model
@@ -38,7 +37,8 @@ def model_for(problem: Problem) -> Model:
     """The compiled model of a problem, reused for problems that differ only in
     parameter values (finite differences, optimisation loops)."""
     key = (id(problem.mesh), id(problem.material), problem.fixed, problem.loads, problem.contact,
-           tuple((k, id(v)) for k, v in problem.shape.items()), tuple(sorted(problem.params)))
+           tuple((k, id(v)) for k, v in problem.shape.items()), tuple(sorted(problem.params)),
+           problem.kinematics, problem.formulation)
     try:
         m = _MODELS[key]
         _MODELS.move_to_end(key)
@@ -46,9 +46,6 @@ def model_for(problem: Problem) -> Model:
     except (KeyError, TypeError):
         pass
     m = Model(problem)
-    m.pattern = SparsityPattern(m.block_dofs(), m.n_dof, m.free)
-    m.fext = jax.jit(m.external_forces)
-    m.cache = {}  # compiled DDM / response functions, reused across solves
     try:
         _MODELS[key] = m
         if len(_MODELS) > 8:

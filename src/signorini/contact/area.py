@@ -2,8 +2,9 @@
 
 A_S belongs to contact node S and its two neighbours N1, N2 along the boundary
 of the *reference* mesh (paper section 4, docs/theory.md §5): in plane strain
-(per unit thickness) A_S = (l1 + l2) / 2, and l1 / 2 at an end node. It depends
-on the design parameters through X(phi), never on the displacements.
+(per unit thickness) A_S = (l1 + l2) / 2, and l1 / 2 at an end node; the
+axisymmetric form is in :mod:`signorini.kinematics`. It depends on the design
+parameters through X(phi), never on the displacements.
 """
 
 from __future__ import annotations
@@ -19,22 +20,22 @@ def contact_nodes(edges: np.ndarray) -> np.ndarray:
     return np.unique(edges.ravel())
 
 
-def equivalent_areas(X, edges: np.ndarray, nodes: np.ndarray | None = None):
+def equivalent_areas(X, edges: np.ndarray, nodes: np.ndarray | None = None, kinematics=None):
     """A_S (n_contact,) for the nodes ``nodes`` of the edge set ``edges``.
 
     Args:
         X: (n_nodes, 2) reference coordinates (JAX or NumPy, may depend on phi).
         edges: (n_edges, 2) boundary edges of the contact surface.
         nodes: (n_contact,) sorted contact nodes (default ``contact_nodes(edges)``).
+        kinematics: :class:`~signorini.kinematics.PlaneStrain` (default, per unit
+            thickness) or :class:`~signorini.kinematics.Axisymmetric` (full 2 pi).
     """
+    from ..kinematics import PLANE_STRAIN
+
     edges = np.asarray(edges)
     if nodes is None:
         nodes = contact_nodes(edges)
-    L = jnp.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
-    pos = np.searchsorted(nodes, edges)  # local index of each edge end
-    A = jnp.zeros(len(nodes))
-    A = A.at[pos[:, 0]].add(0.5 * L).at[pos[:, 1]].add(0.5 * L)
-    return A
+    return (kinematics or PLANE_STRAIN).contact_areas(X, edges, nodes)
 
 
 def check_edges(edges: np.ndarray, name: str) -> None:

@@ -1,0 +1,138 @@
+"""The layout of the unknowns of a :class:`~signorini.problem.Problem`.
+
+``w`` (n_dof,) = [U (2 per node, node-major), Lambda (the multipliers of each
+contact surface, node-major)]. Prescribed displacement DOFs are part of ``w``
+(their values are set, not solved for); the rest are *free*. Building the
+layout is where inconsistent boundary data is caught: unused nodes, a DOF
+prescribed twice, contact surfaces that share nodes or are not chains.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contact.area import check_edges, contact_nodes, nodal_normals
+from .errors import InputError
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Static data of one contact surface."""
+
+    contact: object  # Contact
+    edges: np.ndarray  # (n_edges, 2)
+    nodes: np.ndarray  # (nc,) mesh node indices
+    lam_offset: int  # first multiplier DOF
+    n_mult: int
+    dofs: np.ndarray  # (nc, 2 + n_mult) DOFs of each contact element
+    tangential: np.ndarray | None  # (nc,) 1 where a friction node carries lam_T, else 0; None: no history
+
+    @property
+    def lam_dofs(self) -> np.ndarray:
+        return self.dofs[:, 2:]
+
+    @property
+    def has_history(self) -> bool:
+        return self.tangential is not None
+
+
+class DofLayout:
+    """Unknowns, prescribed and free DOFs, contact surfaces of a problem."""
+
+    def __init__(self, problem):
+        mesh = problem.mesh
+        self.n_nodes = mesh.n_nodes
+        self.conn = mesh.cells
+        self.edofs = np.stack([2 * self.conn, 2 * self.conn + 1], axis=-1).reshape(-1, 8)
+        used = np.zeros(mesh.n_nodes, bool)
+        used[self.conn.ravel()] = True
+        if not used.all():
+            lone = np.nonzero(~used)[0]
+            raise InputError(
+                f"{lone.size} node(s) belong to no cell (first: node {int(lone[0])} at "
+                f"{mesh.nodes[lone[0]].round(6).tolist()}); their displacements would be "
+                "undetermined. Remove unused nodes from the mesh (e.g. geometry points of a gmsh "
+                "file) and renumber the cells")
+        self._prescribe(problem)
+        self._surfaces(problem)
+        mask = np.ones(self.n_dof, bool)
+        mask[self.prescribed] = False
+        self.free = np.nonzero(mask)[0]
+
+    def _prescribe(self, problem):
+        pres, seen = [], {}
+        for f in problem.fixed:
+            if f.component not in (0, 1):
+                raise InputError(f"Fixed({f.node_set!r}): component must be 0 or 1, got {f.component}")
+            for n in problem.mesh.node_set(f.node_set):
+                d = 2 * int(n) + f.component
+                if d in seen:
+                    raise InputError(
+                        f"inconsistent boundary sets: DOF {f.component} of node {n} is prescribed "
+                        f"by both {seen[d]!r} and {f.node_set!r}; prescribe each DOF once")
+                seen[d] = f.node_set
+                pres.append((d, f))
+        self.prescribed = np.array([d for d, _ in pres], dtype=np.int64)
+        self.prescribed_fixed = [f for _, f in pres]
+
+    def _surfaces(self, problem):
+        mesh = problem.mesh
+        off = 2 * self.n_nodes
+        surfaces = []
+        pres = set(self.prescribed.tolist())
+        for c in problem.contact:
+            edges = mesh.edge_set(c.edges)
+            check_edges(edges, c.edges)
+            nodes = contact_nodes(edges)
+            for other in surfaces:
+                common = np.intersect1d(nodes, other.nodes)
+                if common.size:
+                    raise InputError(
+                        f"contact surfaces {other.contact.edges!r} and {c.edges!r} share "
+                        f"{common.size} node(s) (first: node {int(common[0])}); a node may belong "
+                        "to one Contact only: split the edge sets, or use one Contact per obstacle "
+                        "on disjoint parts of the boundary")
+            both = np.array([2 * n in pres and 2 * n + 1 in pres for n in nodes])
+            if both.any():
+                raise InputError(
+                    f"inconsistent boundary sets: contact node {int(nodes[np.argmax(both)])} of "
+                    f"{c.edges!r} has both displacement components prescribed, so contact there "
+                    "is meaningless; remove it from the contact set or free one component")
+            m = c.method.n_multipliers
+            lam = off + np.arange(len(nodes) * m).reshape(len(nodes), m)
+            dofs = np.concatenate([2 * nodes[:, None], 2 * nodes[:, None] + 1, lam], axis=1)
+            tang = self._tangential_mask(c, mesh.nodes, edges, nodes, pres)
+            surfaces.append(Surface(c, edges, nodes, off, m, dofs, tang))
+            off += len(nodes) * m
+        self.surfaces = tuple(surfaces)
+        self.n_dof = off
+
+    @staticmethod
+    def _tangential_mask(contact, X, edges, nodes, pres):
+        """(nc,) 1.0 where a history (friction) node carries lam_T, 0.0 where its
+        tangential displacement is prescribed (symmetry line or axis: g_T would be
+        identically 0 and the stick row of lam_T zero, docs/theory.md §3.6); None
+        for methods without history. "Tangential" = the prescribed component is
+        closer to the body's reference tangent than to its normal."""
+        if not getattr(contact.method, "has_history", False):
+            return None
+        N = np.asarray(nodal_normals(X, edges, nodes))
+        mask = np.ones(len(nodes))
+        for k, n in enumerate(nodes):
+            for c in (0, 1):
+                if 2 * int(n) + c in pres and abs(N[k, 1 - c]) >= abs(N[k, c]):
+                    mask[k] = 0.0  # |T_c| = |N_{1-c}|: prescribed component is tangential
+        return mask
+
+    def split(self, w):
+        """w -> (u (n_nodes, 2), [lam_s (nc_s, m_s) per surface])."""
+        u = w[: 2 * self.n_nodes].reshape(-1, 2)
+        lams = [w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
+                for s in self.surfaces]
+        return u, lams
+
+    def block_dofs(self) -> list[np.ndarray]:
+        """DOF maps of the element blocks and of each surface's contact blocks."""
+        return [self.edofs] + [s.dofs for s in self.surfaces]
