@@ -25,7 +25,7 @@ from .newton import NewtonOptions, StepFailure, StepLog, newton
 from .params import as_jax, check_names
 from .progress import SolveProgress
 from .problem import Problem
-from .sensitivity import DDM
+from .sensitivity.ddm import DDM
 from .solution import Increment, Solution
 
 log = logging.getLogger("signorini")

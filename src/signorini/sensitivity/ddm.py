@@ -7,19 +7,19 @@ After each converged increment, for all design parameters phi_k at once::
 
 with K the exact tangent at the converged state, already factorised. No
 iterations: the multipliers' sensitivities come out of the same solve.
-:func:`finite_difference` computes the same derivatives by central
-differences, for checking.
+:func:`signorini.sensitivity.fd.finite_difference` computes the same
+derivatives by central differences, for checking.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
-from ._jax import jax, jnp
-from .params import unit_tangents
+from .._jax import jax, jnp
+from ..params import unit_tangents
 
 
 class DDM:
@@ -67,31 +67,3 @@ class DDM:
         w_dot[:, m.free] = -factor.solve(np.ascontiguousarray(P[:, m.free].T)).reshape(m.free.size, -1).T
         t2 = time.perf_counter()
         return w_dot, {"pseudo_load": t1 - t0, "back_substitution": t2 - t1}
-
-
-def finite_difference(problem, name: str, quantity: Callable, *, step: float | None = None,
-                      rel_step: float = 1e-6, **solve_kwargs) -> np.ndarray:
-    """Central finite difference of ``quantity(solution)`` with respect to a parameter.
-
-    Args:
-        problem: the :class:`~signorini.problem.Problem` (nominal values).
-        name: parameter to perturb.
-        quantity: maps a :class:`~signorini.solution.Solution` to an array.
-        step: absolute step; default ``rel_step * max(|phi|, 1)``.
-        **solve_kwargs: passed to :func:`signorini.solve` (use the same load
-            stepping as the DDM run and a tight ``NewtonOptions(rtol=...)``).
-
-    Returns:
-        (quantity(phi + h) - quantity(phi - h)) / (2 h).
-    """
-    from .solve import solve
-
-    problem.with_params(**{name: 0.0})  # raises a clear error for an unknown name
-    base = problem.params[name]
-    h = step if step is not None else rel_step * max(abs(base), 1.0)
-    solve_kwargs = {k: v for k, v in solve_kwargs.items() if k not in ("sensitivities", "label")}
-    qp = np.asarray(quantity(solve(problem.with_params(**{name: base + h}), label=f"FD {name}+",
-                                   **solve_kwargs)))
-    qm = np.asarray(quantity(solve(problem.with_params(**{name: base - h}), label=f"FD {name}-",
-                                   **solve_kwargs)))
-    return (qp - qm) / (2.0 * h)
