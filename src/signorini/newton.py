@@ -35,6 +35,9 @@ class NewtonOptions:
         divergence: ||R|| > divergence * ref stops the increment early.
         singular_check: relative linear residual above which a solve is taken
             as singular.
+        line_search: halve a Newton correction until the residual norm falls
+            (helps when stick/slip or contact states cycle; off by default:
+            Newton's own path is then exactly the textbook one).
     """
 
     rtol: float = 1e-10
@@ -45,6 +48,7 @@ class NewtonOptions:
     min_step: float = 1e-6
     divergence: float = 1e12
     singular_check: float = 1e-6
+    line_search: bool = False
 
     def __post_init__(self):
         if not (self.rtol > 0 or self.atol > 0):
@@ -98,6 +102,9 @@ class StepFailure(Exception):
         self.stagnated = stagnated  # at the round-off floor: the tolerance is unreachable
 
 
+#: halvings of a Newton correction whose iterate has a non-finite residual
+BACKTRACK = 8
+
 #: iterations without progress near round-off before Newton is declared stagnated
 STAGNATION = 4
 
@@ -113,6 +120,16 @@ def _stagnated(res: list[float], ref: float) -> bool:
     return min(last[1:]) > 0.5 * last[0]
 
 
+def _reject(Rf, weights, norm_prev, alpha, options) -> bool:
+    """Backtrack from this iterate? Always if its residual is not finite; with a
+    line search also if the norm did not fall (Armijo, c = 1e-4)."""
+    if not np.all(np.isfinite(Rf)):
+        return True
+    if not options.line_search:
+        return False
+    return float(np.linalg.norm(Rf * weights)) > (1.0 - 1e-4 * alpha) * norm_prev
+
+
 def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions,
            weights: np.ndarray, ref_floor: float, steplog: StepLog):
     """Iterate to convergence from ``w`` (modified in place on the free DOFs).
@@ -126,16 +143,32 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
     """
     free = model.free
     ref = None
+    dw = None
+    norm_prev = np.inf
     for k in range(options.max_iter + 1):
         t0 = time.perf_counter()
         R, blocks = model.local_tangents(w, params, t, state_n)
-        steplog.time_assembly += time.perf_counter() - t0
         Rf = R[free]
+        # A Newton correction whose iterate inverts an element (non-finite residual) or,
+        # with options.line_search, does not decrease the residual norm is halved (up to
+        # BACKTRACK times) instead of cutting the load step: the converged point and the
+        # load path stay the same, which keeps finite differences consistent with the DDM.
+        halvings = 0
+        while dw is not None and halvings < BACKTRACK and _reject(Rf, weights[free], norm_prev,
+                                                                  0.5**halvings, options):
+            dw *= 0.5
+            w[free] -= dw
+            halvings += 1
+            R, blocks = model.local_tangents(w, params, t, state_n)
+            Rf = R[free]
+        if halvings:
+            log.debug("  t=%.6g it %d: Newton correction halved %d times", t, k, halvings)
+        steplog.time_assembly += time.perf_counter() - t0
         if not np.all(np.isfinite(Rf)):
             raise StepFailure(
                 "non-finite residual: an element is inverted (J <= 0) or a contact node reached "
                 "the centre of the obstacle; a smaller load increment may help")
-        norm = float(np.linalg.norm(Rf * weights[free]))
+        norm = norm_prev = float(np.linalg.norm(Rf * weights[free]))
         if ref is None:
             ref = max(norm, ref_floor)
         steplog.residuals.append(norm)
