@@ -371,18 +371,19 @@ def test_poorly_resolved_contact_zone():
     assert sol.warnings
 
 
-@pytest.mark.timeout(180)
+@pytest.mark.timeout(300)
 def test_coarse_frictional_path_is_recorded():
-    """hertz-friction --steps 3: the contact zone jumps by many nodes per increment
-    and c/a comes out far too small; with 30 steps there is no such warning."""
-    pb = hf.hertz_friction_problem(n_fine=12, size=10)
+    """hertz-friction --steps 3 (the default mesh): the contact zone jumps by several
+    nodes per increment and c/a at P1 comes out far too small (0.28 instead of 0.66);
+    with the default 30 steps there is no such warning."""
+    pb = hf.hertz_friction_problem()
     with pytest.warns(SignoriniWarning) as rec:
         coarse = sg.solve(pb, steps=3)
     warned(rec, "use more load increments")
     fine = sg.solve(pb, steps=30)
-    assert not any("grew by" in w for w in fine.warnings)
-    ca = lambda s: hf.stick_zone(s.contact(), 0.3)["c_over_a"]
-    assert ca(coarse) < 0.8 * ca(fine)  # the warned result is indeed wrong
+    assert not any("grew by" in w for w in fine.warnings), fine.warnings
+    ca = lambda s, k: hf.stick_zone(s.contact(k), 0.3)["c_over_a"]
+    assert ca(coarse, 0) < 0.6 * ca(fine, 9)  # P1: the warned result is indeed wrong
 
 
 @pytest.mark.timeout(60)

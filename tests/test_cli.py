@@ -74,5 +74,5 @@ def test_help_and_version(capsys):
     text = capsys.readouterr().out
     assert f"signorini {signorini.__version__}" in text
     assert "mu = Coulomb friction coefficient" in text  # the --set names of hertz-friction
-    assert "--zone-width" in text and "(default: 20.0)" in text
+    assert "--zone-width" in text and "(default: 20.0)" in text and "(default: 80.0)" in text
     assert ":func:" not in text and "``" not in text  # no raw reStructuredText

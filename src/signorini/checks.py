@@ -23,8 +23,13 @@ log = logging.getLogger("signorini")
 #: a contact zone with fewer closed nodes than this is poorly resolved
 MIN_CONTACT_NODES = 10
 #: a friction surface whose contact zone grows by more nodes than this in one
-#: increment (after the first) has a load path too coarse for its history
-MAX_NEW_CONTACT_NODES = 2
+#: increment in the last two thirds of the load path has a path too coarse for
+#: its history (benchmarks/study_friction_domain.py: this rule flags exactly the
+#: frictional Hertz paths whose stick zone is off by more than 2 %; the early
+#: growth of a contact zone, 41 % of a in the 2nd increment, does not matter,
+#: because the final stick edge formed after about (c/a)^2 t = 0.47 t)
+MAX_NEW_CONTACT_NODES = 1
+COARSE_PATH_FROM = 1.0 / 3.0
 
 
 def warn(solution, message: str) -> None:
@@ -135,15 +140,15 @@ class IncrementChecks:
                              f"{int(s.nodes[flip[0]])}) passed through the obstacle in increment "
                              f"{n_inc} (t = {t0:.4g} -> {t:.4g}); the result is not physical: use "
                              "more load increments")
-                if getattr(s.contact.method, "has_history", False) and n_inc > 1:
+                if getattr(s.contact.method, "has_history", False) and t0 >= COARSE_PATH_FROM - 1e-12:
                     new = int(np.sum(closed1 & ~closed0))
                     if new > MAX_NEW_CONTACT_NODES and closed0.any():
                         warn(self.solution,
                              f"contact {s.contact.edges!r}: the contact zone grew by {new} nodes in "
                              f"increment {n_inc} (t = {t0:.4g} -> {t:.4g}); with friction the "
                              "history of the nodes that close within one increment is not resolved "
-                             f"(more than {MAX_NEW_CONTACT_NODES} per increment), so stick and slip "
-                             "zones can be wrong: use more load increments")
+                             f"(more than {MAX_NEW_CONTACT_NODES} per increment after t = 1/3), so "
+                             "stick and slip zones can be wrong: use more load increments")
         self.prev = now
 
     def final(self) -> None:

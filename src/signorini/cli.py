@@ -104,13 +104,14 @@ def _set_help(allowed: dict) -> str:
             "finite differences of two runs equal the printed DDM sensitivities.")
 
 
-def _common(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: str, a0: float):
+def _common(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: str, a0: float,
+            block: float = 20.0):
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output directory (created if needed; must be writable)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help=_set_help(allowed))
     p.add_argument("--refine", type=_nonneg_int, default=0, metavar="N",
                    help="halve every cell N times (each level: 4x the unknowns)")
-    p.add_argument("--block", type=_positive_float, default=20.0, metavar="B",
+    p.add_argument("--block", type=_positive_float, default=block, metavar="B",
                    help=f"block width and depth, in units of the nominal contact half-width a0 "
                         f"(a0 = {a0:.4g} mm: Hertz's half-width at the default parameters)")
     p.add_argument("--zone-width", type=_positive_float, default=1.5, metavar="Z",
@@ -179,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "log, DDM vs FD), Fig. 5/6-like figures, VTU files at P1..P3 and the series "
                     "hertz_friction.pvd. " + UNITS)
     _common(f, FRICTION_SET, 30, "number of load increments, a multiple of 3 (P1 = P/3, P2 = 2P/3 "
-            "and P3 = P must be increments)", _a0("hertz_friction"))
+            "and P3 = P must be increments)", _a0("hertz_friction"), block=80.0)
 
     r = sub.add_parser(
         "run", formatter_class=fmt, help="solve a problem described in a TOML file",

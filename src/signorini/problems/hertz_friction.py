@@ -27,10 +27,14 @@ from . import hertz
 
 DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 1.5, "R": 10.0, "mu": 0.3}
 LOADS = (1.0 / 3.0, 2.0 / 3.0, 1.0)  # P_i / P at the three reported loads
+#: default block size in units of a0: c/a changes by < 0.15 % when it doubles, at
+#: refine 0 and 1 (20 a0 and 40 a0 still jump by a stick node, up to 5 %;
+#: benchmarks/study_friction_domain.py)
+BLOCK = 80.0
 
 
 def hertz_friction_problem(params: dict | None = None, *, refine: int = 0, n_fine: int = 24,
-                           size: float = 20.0, zone: float = 1.5, finite_strain: bool = False,
+                           size: float = BLOCK, zone: float = 1.5, finite_strain: bool = False,
                            force_size: bool = False):
     """The frictional Hertz half model (parameters E, nu, P, R, mu, eps, eps_t, bump).
 
@@ -69,10 +73,10 @@ def zones(contact: dict) -> tuple[float, float]:
             float(x[stick].max()) if stick.any() else 0.0)
 
 
-def _edge(x, inside, q):
+def _edge(x, inside, q, power):
     """Interpolated end of the zone ``inside`` (a prefix of the sorted nodes x):
-    q**2 vanishes linearly at a square-root edge, so extrapolate q**2 from the
-    last two inside nodes to zero, clipped to the bracket [last inside, first
+    q**power vanishes about linearly at the edge, so extrapolate it from the last
+    two inside nodes to zero, clipped to the bracket [last inside, first
     outside]. Returns (edge, (lo, hi))."""
     idx = np.nonzero(inside)[0]
     if not idx.size:
@@ -82,7 +86,7 @@ def _edge(x, inside, q):
     hi = float(x[k + 1]) if k + 1 < len(x) else lo
     if k < 1 or hi == lo:
         return lo, (lo, hi)
-    y1, y2 = q[k - 1] ** 2, q[k] ** 2
+    y1, y2 = q[k - 1] ** power, q[k] ** power
     if y1 <= y2:  # not decreasing towards the edge: no extrapolation
         return lo, (lo, hi)
     edge = lo + y2 * (x[k] - x[k - 1]) / (y1 - y2)
@@ -93,11 +97,12 @@ def stick_zone(contact: dict, mu: float) -> dict:
     """Contact and stick half-widths with their brackets, interpolated.
 
     a: the pressure vanishes like sqrt(a - x) at the contact edge, so p_N**2 is
-    extrapolated to zero from the last two closed nodes. c: in the stick zone
-    the friction reserve q = 1 - |p_T| / (mu p_N) vanishes like sqrt(c - x) at
-    the stick/slip edge (Cattaneo–Mindlin), so q**2 is extrapolated to zero
-    from the last two sticking nodes. Both are clipped to their bracket between
-    the last node inside and the first node outside.
+    extrapolated to zero from the last two closed nodes. c: the friction
+    reserve q = 1 - |p_T| / (mu p_N) of the stick zone vanishes at the
+    stick/slip edge like (c - x)^1.2..1.3 (measured at refine 1 and 2,
+    benchmarks/study_friction_domain.py), so q itself is extrapolated linearly
+    to zero from the last two sticking nodes. Both are clipped to their bracket
+    between the last node inside and the first node outside.
 
     Returns:
         dict with ``a``, ``a_bracket``, ``c``, ``c_bracket``, ``c_over_a``,
@@ -111,10 +116,10 @@ def stick_zone(contact: dict, mu: float) -> dict:
     st = contact["status"][order]
     closed = st != "open"
     stick = st == "stick"
-    a, ab = _edge(x, closed, np.where(closed, pN, 0.0))
+    a, ab = _edge(x, closed, np.where(closed, pN, 0.0), 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(stick & (pN > 0), 1.0 - np.abs(pT) / (mu * pN), 0.0) if mu > 0 else np.ones_like(x)
-    c, cb = _edge(x, stick, q)
+    c, cb = _edge(x, stick, q, 1)
     a_n, c_n = zones(contact)
     ratio = c / a if a > 0 else 0.0
     lo = cb[0] / ab[1] if ab[1] > 0 else 0.0
@@ -138,7 +143,7 @@ def load_increments(solution) -> list[int]:
 
 def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd_check: bool = True,
         sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="superlu",
-        size: float = 20.0, zone: float = 1.5, finite_strain: bool = False,
+        size: float = BLOCK, zone: float = 1.5, finite_strain: bool = False,
         force_size: bool = False) -> dict:
     """Solve the frictional Hertz benchmark with path-dependent DDM sensitivities.
 
