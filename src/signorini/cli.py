@@ -47,6 +47,20 @@ class _Formatter(argparse.HelpFormatter):
         return text
 
 
+FORGING_SET = {
+    **{f"phi{k}": f"Bezier control radius {k} of the preform [h0], default 0.7 (cylinder)"
+       for k in range(5)},
+    "mu": "Coulomb friction coefficient on the die, default 0.1",
+    "sigma_y": "initial yield stress, default 100",
+    "H": "linear isotropic hardening modulus, default 0",
+    "E": "Young's modulus, default 1e4",
+    "nu": "Poisson's ratio, default 0.3",
+    "stroke": "die travel [h0], default 0.5 (50 %% height reduction)",
+    "eps": "normal augmentation parameter, default E0/h0",
+    "eps_t": "tangential augmentation parameter, default eps",
+}
+
+
 def _positive_int(text: str) -> int:
     try:
         v = int(text)
@@ -98,10 +112,11 @@ def parse_sets(items: list[str], allowed: dict) -> dict:
 
 
 def _set_help(allowed: dict) -> str:
-    return ("set a named parameter (repeatable), e.g. --set R=2. Names: " +
+    first = next(iter(allowed))
+    return (f"set a named parameter (repeatable), e.g. --set {first}=1.5. Names: " +
             "; ".join(f"{k} = {v}" for k, v in allowed.items()) + ". The mesh never changes with "
-            "these values (it is sized from the defaults and --block/--zone-width/--refine), so "
-            "finite differences of two runs equal the printed DDM sensitivities.")
+            "these values (it is built from the defaults and the mesh options), so finite "
+            "differences of two runs equal the printed DDM sensitivities.")
 
 
 def _common(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: str, a0: float,
@@ -181,6 +196,28 @@ def build_parser() -> argparse.ArgumentParser:
                     "hertz_friction.pvd. " + UNITS)
     _common(f, FRICTION_SET, 30, "number of load increments, a multiple of 3 (P1 = P/3, P2 = 2P/3 "
             "and P3 = P must be increments)", _a0("hertz_friction"), block=80.0)
+
+    fg = sub.add_parser(
+        "forging", formatter_class=fmt,
+        help="axisymmetric J2 forging of a Bezier preform with friction (paper 5.3, Table 1)",
+        description="A billet (height 2 h0 = 2, half model) upset by a flat rigid die with Coulomb "
+                    "friction to 50 % height reduction: axisymmetric finite-strain J2 plasticity "
+                    "(F-bar Q4), preform radius r0(Z) = Bezier curve of phi0..phi4. Computes the "
+                    "objective F = sum (r_k - h0)^2 over the free-surface nodes and its DDM "
+                    "sensitivities to phi0..phi4, mu and sigma_y, checked by central differences. "
+                    "Writes summary.json, table1.csv, shape.png, force.png and forging.pvd. "
+                    "Units: lengths in h0, stresses in the units of E.")
+    fg.add_argument("--out", required=True, metavar="DIR",
+                    help="output directory (created if needed; must be writable)")
+    fg.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help=_set_help(FORGING_SET))
+    fg.add_argument("--mesh", default="10x20", metavar="NRxNZ",
+                    help="cells in the radial and axial directions")
+    fg.add_argument("--steps", type=_positive_int, default=50, metavar="N",
+                    help="equal increments of the die stroke")
+    fg.add_argument("--no-fd", action="store_true",
+                    help="skip the central-difference check (14 re-solves of the whole path)")
+    _solver_options(fg)
 
     r = sub.add_parser(
         "run", formatter_class=fmt, help="solve a problem described in a TOML file",
@@ -276,6 +313,21 @@ def _dispatch(args) -> int:
         print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
               f"c/a at P1, P2, P3 = {ca}; Newton iterations {sum(s['newton_iterations'])} "
               f"in total; DDM vs FD at P3 (max rel. diff.): {_fmt_fd(s['ddm_vs_fd_rel_diff_P3'])}")
+    elif args.command == "forging":
+        from .problems import forging
+
+        params = parse_sets(args.set, FORGING_SET)
+        s = forging.run(args.out, params, mesh=forging.parse_mesh(args.mesh), steps=args.steps,
+                        fd_check=not args.no_fd, solver=args.solver, force_size=args.force_size)
+        print(f"forging ({s['mesh']['dofs']} DOFs, {s['steps']} increments, mu = "
+              f"{s['params']['mu']:g}): F = {s['F']:.6g}, max |r - h0| / h0 = "
+              f"{s['max_rel_deviation_from_r_opt']:.4f}, die force {s['die_force_final']:.5g}, "
+              f"volume ratio {s['volume']['ratio']:.4f}")
+        print(f"{'parameter':>10} {'DDM':>14} {'FD':>14} {'rel. diff.':>10}")
+        for n, d in s["dF_ddm"].items():
+            fd = s["dF_fd"][n] if isinstance(s["dF_fd"], dict) else float("nan")
+            rel = s["ddm_vs_fd_rel_diff"][n] if isinstance(s["ddm_vs_fd_rel_diff"], dict) else float("nan")
+            print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
     elif args.command == "run":
         from . import problemfile
 

@@ -209,6 +209,15 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     cell = {"cauchy_stress": [stress.reshape(-1, 9)]}
     for name, d in dstress.items():
         cell[f"dcauchy_stress_d{name}"] = [np.asarray(d).reshape(-1, 9)]
+    alpha = getattr(m.material, "equivalent_plastic_strain", None)
+    inc = solution.increments[i]
+    if alpha is not None and m.n_state and inc.state is not None:
+        # Gauss-point history after the increment, averaged per cell
+        cell["equivalent_plastic_strain"] = [np.asarray(inc.state[2])[..., 9].mean(axis=1)]
+        if inc.state_sens is not None:
+            for k, name in enumerate(solution.names):
+                cell[f"dequivalent_plastic_strain_d{name}"] = [
+                    np.asarray(inc.state_sens[2])[k, ..., 9].mean(axis=1)]
     mesh = meshio.Mesh(_vec3(X), [("quad", m.conn)], point_data=point, cell_data=cell)
     mesh.write(path)
     return path

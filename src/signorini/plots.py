@@ -33,3 +33,35 @@ def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "
     fig.savefig(path)
     plt.close(fig)
     return Path(path)
+
+
+def meshes(path, panels: list[dict], *, title: str = "") -> Path:
+    """Draw quad meshes side by side. Each panel: ``{"x": (n_nodes, 2), "cells":
+    (n_cells, 4), "title": str, "color": cell values (optional)}``; equal axes."""
+    from matplotlib.collections import PolyCollection
+
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels) + 1, 4.6), dpi=120,
+                             sharey=True, squeeze=False)
+    lim = max(float(p["x"][:, 0].max()) for p in panels) * 1.05
+    top = max(float(p["x"][:, 1].max()) for p in panels) * 1.05
+    for ax, p in zip(axes[0], panels):
+        polys = p["x"][p["cells"]]
+        pc = PolyCollection(polys, edgecolors="k", linewidths=0.4,
+                            facecolors="none" if p.get("color") is None else None)
+        if p.get("color") is not None:
+            pc.set_array(p["color"])
+            pc.set_cmap("viridis")
+            fig.colorbar(pc, ax=ax, shrink=0.8, label=p.get("color_label", ""))
+        ax.add_collection(pc)
+        ax.set_xlim(0, lim)
+        ax.set_ylim(0, top)
+        ax.set_aspect("equal")
+        ax.set_xlabel("r")
+        ax.set_title(p.get("title", ""))
+    axes[0][0].set_ylabel("z")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return Path(path)

@@ -9,5 +9,6 @@ increment, and the updated history h. Hyperelastic materials have
 """
 
 from .elastic import LinearElastic, NeoHooke, det_minus_one
+from .j2 import J2Plasticity
 
-__all__ = ["LinearElastic", "NeoHooke", "det_minus_one"]
+__all__ = ["J2Plasticity", "LinearElastic", "NeoHooke", "det_minus_one"]
