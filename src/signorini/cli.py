@@ -50,7 +50,7 @@ class _Formatter(argparse.HelpFormatter):
 FORGING_SET = {
     **{f"phi{k}": f"Bezier control radius {k} of the preform [h0], default 0.7 (cylinder)"
        for k in range(5)},
-    "mu": "Coulomb friction coefficient on the die, default 0.1",
+    "mu": "Coulomb friction coefficient on the die, default 0.2",
     "sigma_y": "initial yield stress, default 100",
     "H": "linear isotropic hardening modulus, default 0",
     "E": "Young's modulus, default 1e4",

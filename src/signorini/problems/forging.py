@@ -36,7 +36,7 @@ from ..resources import check_size
 
 H0 = 1.0
 SHAPE = tuple(f"phi{k}" for k in range(5))
-DEFAULTS = {**{k: 0.7 * H0 for k in SHAPE}, "mu": 0.1, "sigma_y": 100.0, "H": 0.0,
+DEFAULTS = {**{k: 0.7 * H0 for k in SHAPE}, "mu": 0.2, "sigma_y": 100.0, "H": 0.0,
             "E": 1.0e4, "nu": 0.3, "stroke": 0.5 * H0}
 #: the parameters of the paper's Table 1 analogue
 TABLE1 = SHAPE + ("mu", "sigma_y")
