@@ -10,8 +10,10 @@ from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty, equivalent_
 from .errors import (ConvergenceError, InputError, InvertedElementError, ResourceError,
                      SignoriniError, SignoriniWarning, SingularTangentError, SolverError,
                      UnknownParameterError)
+from .element import FBar, Standard
+from .kinematics import Axisymmetric, PlaneStrain
 from .loads import Fixed, Pressure, Traction
-from .materials import LinearElastic, NeoHooke
+from .materials import J2Plasticity, LinearElastic, NeoHooke
 from .mesh import Mesh, graded_coordinates, rectangle
 from .newton import NewtonOptions
 from .obstacles import Circle, Line
@@ -24,7 +26,7 @@ from . import io  # noqa: E402  (read_mesh, write_vtu, ...)
 __version__ = "0.1.0"
 
 __all__ = [
-    "AugmentedLagrangian", "Circle", "Contact", "ConvergenceError", "Coulomb", "Fixed", "InputError",
+    "AugmentedLagrangian", "Axisymmetric", "Circle", "FBar", "J2Plasticity", "PlaneStrain", "Standard", "Contact", "ConvergenceError", "Coulomb", "Fixed", "InputError",
     "InvertedElementError", "LinearElastic", "Line", "Mesh", "NeoHooke", "NewtonOptions",
     "Penalty", "Pressure", "Problem", "ResourceError", "SignoriniError", "SignoriniWarning", "SingularTangentError", "Solution",
     "SolverError", "Traction", "UnknownParameterError", "equivalent_areas", "finite_difference",
