@@ -76,6 +76,22 @@ def write_partial(out: Path, solution, stem: str, reason: str, extra: dict | Non
     return summary
 
 
+def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
+    """``signorini.solve(problem, label="base", **solve_kwargs)``; on a Newton failure
+    write the converged increments (``<stem>.pvd`` series, last contact table) and a
+    ``failed`` summary.json with ``extra`` before re-raising."""
+    from .errors import ConvergenceError
+    from .solve import solve
+
+    try:
+        return solve(problem, label="base", **solve_kwargs)
+    except ConvergenceError as e:
+        if e.partial is not None and e.partial.increments:
+            io.write_pvd(e.partial, out / f"{stem}.pvd")
+        write_partial(out, e.partial, stem, str(e), extra)
+        raise
+
+
 def max_rel_diff(ddm: np.ndarray, fd: np.ndarray) -> float:
     """max |DDM - FD| / max |DDM| (the comparison every command reports)."""
     scale = float(np.max(np.abs(ddm))) if np.size(ddm) else 0.0

@@ -168,27 +168,10 @@ class Solution:
 
         ``fn`` is a JAX-traceable function of the unknowns w (n_dof,), the
         parameter dict and the load factor t. ``key`` (hashable) caches the
-        compiled function on the model for reuse. Returns (value, {name: DF/Dphi}).
+        compiled function on the model for reuse (the same key must always mean
+        the same ``fn``). Returns (value, {name: DF/Dphi}).
         """
-        inc = self._inc(i)
-        w = jnp.asarray(inc.w)
-        cache = self.model.cache
-        if key is not None and key in cache:
-            val_fn, jvp_fn = cache[key]
-        else:
-            val_fn = jax.jit(fn)
-            jvp_fn = jax.jit(jax.vmap(lambda w, p, t, a, b: jax.jvp(
-                lambda w_, p_: fn(w_, p_, t), (w, p), (a, b))[1], (None, None, None, 0, 0)))
-            if key is not None:
-                cache[key] = (val_fn, jvp_fn)
-        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, inc.t))
-        if not with_sensitivities or not self.names:
-            return val, {}
-        e = unit_tangents(self._jp, self.names)
-        wd = jnp.asarray(np.stack([inc.sens[n] for n in self.names]))
-        d = jvp_fn(w, self._jp, inc.t, wd, e)
-        return val, {n: jax.tree_util.tree_map(lambda v, k=k: np.asarray(v[k]), d)
-                     for k, n in enumerate(self.names)}
+        return self._evaluate(fn, i, with_sensitivities, key, with_state=False)
 
     def contact(self, i: int = -1, surface: int = 0) -> dict:
         """Per contact node: ``node, x_ref, x, gap, p_N, p_T, area`` and
@@ -226,24 +209,29 @@ class Solution:
         """Value and DDM sensitivities of F = fn(w, params, t, state_n) for a quantity
         that also depends on the history before increment i (stresses of a plastic
         material, reactions with friction): the JVP carries D state_n / D phi too."""
+        return self._evaluate(fn, i, True, key, with_state=True)
+
+    def _evaluate(self, fn, i, with_sensitivities, key, with_state):
+        """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])."""
         inc = self._inc(i)
-        state, sdot = self.state_before(i)
         w = jnp.asarray(inc.w)
+        state, sdot = self.state_before(i) if with_state else (None, None)
         cache = self.model.cache
-        if key is not None and key in cache:
-            val_fn, jvp_fn = cache[key]
+        if key is not None and (key, with_state) in cache:
+            val_fn, jvp_fn = cache[(key, with_state)]
         else:
             val_fn = jax.jit(fn)
             jvp_fn = jax.jit(jax.vmap(lambda w, p, t, st, a, b, c: jax.jvp(
-                lambda w_, p_, s_: fn(w_, p_, t, s_), (w, p, st), (a, b, c))[1],
+                lambda w_, p_, s_: fn(w_, p_, t, *s_), (w, p, st), (a, b, c))[1],
                 (None, None, None, None, 0, 0, 0)))
             if key is not None:
-                cache[key] = (val_fn, jvp_fn)
-        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, inc.t, state))
-        if not self.names:
+                cache[(key, with_state)] = (val_fn, jvp_fn)
+        extra = (state,) if with_state else ()
+        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, inc.t, *extra))
+        if not with_sensitivities or not self.names:
             return val, {}
         e = unit_tangents(self._jp, self.names)
         wd = jnp.asarray(np.stack([inc.sens[n] for n in self.names]))
-        d = jvp_fn(w, self._jp, inc.t, state, wd, e, sdot)
+        d = jvp_fn(w, self._jp, inc.t, extra, wd, e, (sdot,) if with_state else ())
         return val, {n: jax.tree_util.tree_map(lambda v, k=k: np.asarray(v[k]), d)
                      for k, n in enumerate(self.names)}

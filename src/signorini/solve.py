@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ._jax import jax, jnp
+from ._jax import jnp
 from .errors import ConvergenceError, InputError, SingularTangentError
 from .linsolve import get_solver
 from .model import Model
@@ -141,13 +141,12 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
                                         state_n, options, weights, ref, steplog)
         except StepFailure as e:
             steplog.reason = e.reason
-            if e.stagnated:
-                raise fail(f"at t={t_new:.6g}: {e.reason}. {len(sol.increments)} increments "
-                           "converged (kept in the error's .partial).") from None
-            if e.fatal:
-                raise fail(_diagnose(model, w_trial, params, t_new, e.reason, len(sol.increments))) from None
             reached = (f"{len(sol.increments)} increments converged (kept in the error's .partial); "
                        f"the load factor reached is t = {t:.6g}")
+            if e.stagnated:
+                raise fail(f"at t={t_new:.6g}: {e.reason}. {reached}.") from None
+            if e.fatal:
+                raise fail(_diagnose(model, w_trial, params, t_new, e.reason, len(sol.increments))) from None
             advice = ("Try more load steps (steps=...), a different eps, or check the loads, "
                       "supports and material.")
             if cuts >= options.max_cuts:

@@ -206,10 +206,8 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     failure the converged increments and a ``failed`` summary are written first.
     """
     from .. import io, plots
-    from ..errors import ConvergenceError
-    from ..runner import Timer, prepare_output, summary_header, write_partial
+    from ..runner import Timer, prepare_output, solve_or_report, summary_header
     from ..sensitivity import finite_difference
-    from ..solve import solve
 
     clock = Timer()
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
@@ -221,13 +219,8 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     names = list(TABLE1)
     info = {"n_r": mesh[0], "n_z": mesh[1], "nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells}
     t0 = clock()
-    try:
-        sol = solve(pb, steps=steps, sensitivities=names, options=opts, solver=solver, label="base")
-    except ConvergenceError as e:
-        if e.partial is not None and e.partial.increments:
-            io.write_pvd(e.partial, out / "forging.pvd")
-        write_partial(out, e.partial, "forging", str(e), {"params": v, "mesh": info})
-        raise
+    sol = solve_or_report(out, "forging", pb, {"params": v, "mesh": info}, steps=steps,
+                          sensitivities=names, options=opts, solver=solver)
     t_solve = clock() - t0
     model = sol.model
     lat = lateral_nodes(pb)

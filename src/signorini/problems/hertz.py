@@ -176,11 +176,9 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     ``failed``, the reason) are written before the error is re-raised.
     """
     from .. import checks, io, plots
-    from ..errors import ConvergenceError
     from ..newton import NewtonOptions
-    from ..runner import Timer, max_rel_diff, prepare_output, summary_header, write_partial
+    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header
     from ..sensitivity import finite_difference
-    from ..solve import solve
 
     clock = Timer()
     out = prepare_output(out)
@@ -193,12 +191,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": fine_cell_size(pb),
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
-    try:
-        sol = solve(pb, steps=steps, sensitivities=sensitivities, options=options, solver=solver,
-                    label="base")
-    except ConvergenceError as e:
-        write_partial(out, e.partial, "hertz", str(e), {"params": v, "mesh": mesh_info})
-        raise
+    sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
+                          sensitivities=sensitivities, options=options, solver=solver)
     t_solve = clock() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]

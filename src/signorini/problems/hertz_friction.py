@@ -159,11 +159,9 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     ``failed``) are written before the error is re-raised.
     """
     from .. import io, plots
-    from ..errors import ConvergenceError
     from ..newton import NewtonOptions
-    from ..runner import Timer, max_rel_diff, prepare_output, summary_header, write_partial
+    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header
     from ..sensitivity import finite_difference
-    from ..solve import solve
 
     clock = Timer()
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 3 or steps % 3:
@@ -180,14 +178,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": h,
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
-    try:
-        sol = solve(pb, steps=steps, sensitivities=sensitivities, options=options, solver=solver,
-                    label="base")
-    except ConvergenceError as e:
-        if e.partial is not None and e.partial.increments:
-            io.write_pvd(e.partial, out / "hertz_friction.pvd")
-        write_partial(out, e.partial, "hertz_friction", str(e), {"params": v, "mesh": mesh_info})
-        raise
+    sol = solve_or_report(out, "hertz_friction", pb, {"params": v, "mesh": mesh_info}, steps=steps,
+                          sensitivities=sensitivities, options=options, solver=solver)
     t_solve = clock() - t0
 
     levels = []
