@@ -216,6 +216,32 @@ def build_parser() -> argparse.ArgumentParser:
                     help="skip the central-difference check (14 re-solves of the whole path)")
     _solver_options(fg)
 
+    o = sub.add_parser(
+        "optimise-forging", formatter_class=fmt,
+        help="find the forging preform whose free surface ends as a cylinder (paper Figs. 8-9)",
+        description="For each friction coefficient, minimise the forging objective F = sum "
+                    "(r_k - h0)^2 over phi0..phi4 from the cylinder phi = 0.7 h0, with gradients "
+                    "by DDM (one solve per design point) or by central differences (for "
+                    "comparison). Writes per mu (mu_<value>/): history.csv of every evaluation, "
+                    "summary.json, shape.png, convergence.png, forging.pvd of the optimal "
+                    "process; and shapes.png and summary.json for all mu in --out. A design where "
+                    "Newton fails or the shape is invalid is penalised, never fatal.")
+    o.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    o.add_argument("--mu", default="0.1,0.2,0.3", metavar="MU[,MU...]",
+                   help="friction coefficients, one optimisation each")
+    o.add_argument("--mesh", default="10x20", metavar="NRxNZ", help="cells (radial x axial)")
+    o.add_argument("--steps", type=_positive_int, default=50, metavar="N",
+                   help="load increments of every forging solve")
+    o.add_argument("--method", default="BFGS", choices=["BFGS", "L-BFGS-B", "SLSQP"],
+                   help="scipy.optimize method (L-BFGS-B, SLSQP: bounds phi >= 0.05)")
+    o.add_argument("--gtol", type=_positive_float, default=1e-6, help="gradient tolerance")
+    o.add_argument("--maxiter", type=_positive_int, default=50, help="iterations per mu")
+    o.add_argument("--gradient", default="ddm", choices=["ddm", "fd"],
+                   help="DDM (exact, one solve per design) or central differences (11 solves)")
+    o.add_argument("--resume", action="store_true",
+                   help="continue from the best point of each mu's history.csv in --out")
+    _solver_options(o)
+
     r = sub.add_parser(
         "run", formatter_class=fmt, help="solve a problem described in a TOML file",
         description="Solve the problem of a TOML problem file (mesh, material, obstacle, loads, "
@@ -325,6 +351,27 @@ def _dispatch(args) -> int:
             fd = s["dF_fd"][n] if isinstance(s["dF_fd"], dict) else float("nan")
             rel = s["ddm_vs_fd_rel_diff"][n] if isinstance(s["ddm_vs_fd_rel_diff"], dict) else float("nan")
             print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
+    elif args.command == "optimise-forging":
+        from .problems import forging, forging_opt
+
+        try:
+            mus = [float(m) for m in args.mu.split(",") if m.strip()]
+        except ValueError:
+            raise InputError(f"--mu expects comma-separated numbers, e.g. 0.1,0.2; got {args.mu!r}") from None
+        if not mus or any(not 0 <= m < float("inf") for m in mus):
+            raise InputError(f"--mu needs friction coefficients >= 0, got {args.mu!r}")
+        s = forging_opt.run(args.out, mus, mesh=forging.parse_mesh(args.mesh), steps=args.steps,
+                            method=args.method, gtol=args.gtol, maxiter=args.maxiter,
+                            gradient=args.gradient, resume=args.resume, solver=args.solver)
+        print(f"{'mu':>5} {'F(cylinder)':>12} {'F*':>10} {'max|r-h0|/h0':>13} {'r0 range':>9} "
+              f"{'iters':>6} {'solves':>6} {'time [s]':>8}")
+        for r in s.get("runs", []):
+            if r.get("status") == "failed" or "F_opt" not in r:
+                print(f"{r.get('mu', float('nan')):5g} failed: {r.get('message', r.get('reason', ''))}")
+                continue
+            print(f"{r['mu']:5g} {r['F_start']:12.4e} {r['F_opt']:10.3e} "
+                  f"{r['max_rel_deviation_from_r_opt']:13.2e} {r['r0_range']['max_minus_min']:9.4f} "
+                  f"{r['iterations']:6d} {r['solves']:6d} {r['time_wall_s']:8.1f}")
     elif args.command == "run":
         from . import problemfile
 

@@ -1,0 +1,665 @@
+"""Design optimisation with exact DDM gradients (paper §5.3).
+
+:class:`Objective` turns a :class:`~signorini.problem.Problem`, a list of
+parameter names and a response into the ``fun``/``jac`` pair that
+:func:`scipy.optimize.minimize` expects::
+
+    obj = Objective(problem, ["phi0", "phi1"], lambda model: my_response(model), steps=20)
+    res = minimize(obj, x0, method="BFGS", gtol=1e-8)
+    res.x, res.fun, res.iterations_log, obj.records, obj.write_csv("history.csv")
+
+* **One solve per design point.** ``fun(x)`` and ``jac(x)`` share one
+  :func:`signorini.solve` with DDM sensitivities of the named parameters:
+  the first call at a point solves, every later call at the bit-identical
+  point (SciPy's usual fun-then-jac pattern, the callback) is served from a
+  cache keyed by the bytes of x.
+* **Every evaluation is recorded** (:class:`Evaluation`: x, F, gradient,
+  Newton iterations, converged increments, wall time, status) in
+  :attr:`Objective.records`; :meth:`Objective.write_csv` writes them, and with
+  ``history=path`` each one is appended to the CSV as soon as it is done, so
+  an interrupted optimisation can be resumed (:func:`read_history`).
+* **Failed trial points do not end the optimisation.** A Newton failure
+  (:class:`~signorini.errors.ConvergenceError`) or an invalid design
+  (:class:`~signorini.errors.InputError`: inverted elements, a ``validate``
+  check such as a preform radius <= 0) at a trial point returns, with
+  ``failure="penalty"`` (default), a large *finite* value
+
+      F_fail = failure_value                     if given, else
+      F_fail = F_max + 10 max(|F|)               over the successful evaluations so far
+
+  (about 11 x the largest value seen for a non-negative objective) and a
+  gradient ``s (x - x_good) / |x - x_good|^2`` along the step from the last
+  good evaluation (x_good, F_good, gradient g_good), with the directional
+  derivative ``s = max(6 (F_fail - F_good) - g_good.(x - x_good), 2 (F_fail - F_good))``
+  > 0: the cubic through F_good, its slope, F_fail and s has its minimum
+  halfway. BFGS's and L-BFGS-B's line searches (Moré-Thuente: cubic
+  interpolation of values and slopes) then see the failed step as uphill
+  with the minimum bracketed and back off towards the last good point
+  (about half-way; the value alone already makes SLSQP's backtracking
+  shorten the step). The value is never NaN; the record
+  has ``status`` ``"failed"`` (Newton) or ``"invalid"`` (design) and the
+  reason. With no successful evaluation yet (and no ``failure_value``) the
+  error is raised: an optimisation cannot start from a design that cannot be
+  solved. ``failure="raise"`` re-raises every failure.
+* ``gradient_mode="fd"`` replaces the DDM gradient by central differences of
+  ``fun`` (2 solves per parameter, step ``fd_step * max(|x_i|, 1)``; solves
+  without sensitivities), for comparing cost and accuracy.
+
+:func:`minimize` wraps :func:`scipy.optimize.minimize` (BFGS, L-BFGS-B,
+SLSQP; bounds and constraints passed through), refuses a start point that
+fails, and logs F and |grad F| per iteration (``res.iterations_log``) for
+convergence plots.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import inspect
+import itertools
+import logging
+import math
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ConvergenceError, InputError, SignoriniWarning
+from .newton import NewtonOptions
+from .params import check_names
+from .solve import solve
+
+log = logging.getLogger("signorini")
+
+__all__ = ["Evaluation", "Objective", "minimize", "read_history", "METHODS"]
+
+#: optimisers of :func:`minimize` (all gradient based)
+METHODS = ("BFGS", "L-BFGS-B", "SLSQP")
+
+_UID = itertools.count()
+
+
+@dataclass
+class Evaluation:
+    """One solve of the objective at a design point.
+
+    Attributes:
+        index: 1-based number of the evaluation (continues an appended history).
+        kind: ``"value+gradient"`` (DDM: one solve gives both), ``"value"``
+            (``gradient_mode="fd"``: the value at a design point) or ``"fd"``
+            (a perturbed point of a finite-difference gradient).
+        x: the design point (parameter values, in the order of ``names``).
+        F: the value returned to the optimiser (``F_fail`` when failed).
+        grad: the gradient returned (None for ``"value"``/``"fd"`` kinds).
+        status: ``"ok"``, ``"failed"`` (Newton did not converge) or ``"invalid"``
+            (the design was rejected: inverted elements, ``validate``).
+        reason: the error message of a failure.
+        newton_iterations: Newton iterations of the solve, over all attempted
+            increments (cut ones included).
+        increments: converged load increments.
+        cuts: increments that failed and were cut (the load path then differs
+            from the nominal one; the gradient is that of the path taken).
+        time: wall time of the evaluation [s].
+        warnings: warnings of the solve (``Solution.warnings``).
+    """
+
+    index: int
+    kind: str
+    x: np.ndarray
+    F: float
+    grad: np.ndarray | None
+    status: str
+    reason: str = ""
+    newton_iterations: int = 0
+    increments: int = 0
+    cuts: int = 0
+    time: float = 0.0
+    warnings: list = field(default_factory=list)
+    error: BaseException | None = field(default=None, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def grad_norm(self) -> float:
+        return float(np.linalg.norm(self.grad)) if self.grad is not None else math.nan
+
+
+def _is_factory(fn) -> bool:
+    """A callable with exactly one positional parameter is a factory G(model) -> fn."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return False
+    pos = [p for p in sig.parameters.values()
+           if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    var = any(p.kind is p.VAR_POSITIONAL for p in sig.parameters.values())
+    return len(pos) == 1 and not var
+
+
+class _OncePerMessage(logging.Filter):
+    """Drop log records whose message was already logged during this optimisation."""
+
+    def __init__(self, seen: set):
+        super().__init__()
+        self.seen = seen
+
+    def filter(self, record):
+        if record.levelno < logging.WARNING:
+            return True
+        msg = record.getMessage()
+        if msg in self.seen:
+            return False
+        self.seen.add(msg)
+        return True
+
+
+class Objective:
+    """F(x) = response of the solved problem at the parameters ``names = x``, with its gradient.
+
+    Args:
+        problem: the :class:`~signorini.problem.Problem` at its nominal values;
+            a design point x is solved as ``problem.with_params(**dict(zip(names, x)))``
+            (same mesh and components, so the compiled model is reused).
+        names: the design parameters (they must be parameters of ``problem``).
+        response: either a factory ``G(model) -> fn`` (a callable of one argument,
+            called once per compiled model, e.g. ``lambda m: forging.objective(m, nodes)``)
+            or a ready ``fn(w, params, t)``; ``fn`` must return a scalar and be
+            JAX-traceable (see :meth:`~signorini.solution.Solution.response`).
+        steps: load increments of every solve.
+        options: :class:`~signorini.newton.NewtonOptions` (default ``NewtonOptions()``).
+        solver: linear solver name or object.
+        response_key: key under which the compiled response is cached on the
+            model (default: a key unique to this objective).
+        increment: which converged increment the response is evaluated at (-1: the last).
+        gradient_mode: ``"ddm"`` (one solve with sensitivities per point) or ``"fd"``
+            (central differences of the value: 1 + 2 len(names) solves per gradient).
+        fd_step: relative step of ``"fd"``: h_i = fd_step * max(|x_i|, 1).
+        failure: ``"penalty"`` (return ``F_fail`` and a gradient pointing back to the
+            last good point, see the module docstring) or ``"raise"``.
+        failure_value: a fixed ``F_fail`` (default: F_max + 10 max |F| of the good points).
+        validate: optional ``validate(params)`` raising :class:`~signorini.errors.InputError`
+            for a design the problem builder would reject (e.g. ``forging._check_shape``);
+            called with the full parameter dict before each solve.
+        factory: force the interpretation of ``response`` (default: detected,
+            one positional parameter = factory).
+        history: path of a CSV file to which every evaluation is appended as it is done.
+        append: with ``history``: continue an existing file (numbering continues)
+            instead of overwriting it.
+        label: name of the solves in log lines and progress bars.
+
+    Attributes:
+        records: every :class:`Evaluation`, in order.
+        warnings: distinct warnings of all solves (also logged once each).
+    """
+
+    def __init__(self, problem, names: Sequence[str], response: Callable, *, steps: int = 1,
+                 options: NewtonOptions | None = None, solver="superlu", response_key=None,
+                 increment: int = -1, gradient_mode: str = "ddm", fd_step: float = 1e-6,
+                 failure: str = "penalty", failure_value: float | None = None,
+                 validate: Callable | None = None, factory: bool | None = None,
+                 history=None, append: bool = False, label: str = "opt"):
+        if isinstance(names, str):
+            raise InputError(f"names must be a list of parameter names, got the string {names!r}")
+        self.names = [str(n) for n in names]
+        if not self.names:
+            raise InputError("an objective needs at least one design parameter (names)")
+        if len(set(self.names)) != len(self.names):
+            raise InputError(f"names lists a parameter twice: {self.names}")
+        check_names(self.names, problem.params, "the design parameters (names)")
+        if gradient_mode not in ("ddm", "fd"):
+            raise InputError(f"gradient_mode must be 'ddm' or 'fd', got {gradient_mode!r}")
+        if failure not in ("penalty", "raise"):
+            raise InputError(f"failure must be 'penalty' or 'raise', got {failure!r}")
+        if failure_value is not None and not np.isfinite(failure_value):
+            raise InputError(f"failure_value must be a finite number, got {failure_value!r}")
+        if not (isinstance(fd_step, (int, float)) and fd_step > 0):
+            raise InputError(f"fd_step must be a positive number, got {fd_step!r}")
+        if not callable(response):
+            raise InputError("response must be a callable: fn(w, params, t) or a factory G(model) -> fn")
+        self.problem = problem
+        self.response = response
+        self.factory = _is_factory(response) if factory is None else bool(factory)
+        self.steps = steps
+        self.options = options if options is not None else NewtonOptions()
+        self.solver = solver
+        self.increment = increment
+        self.gradient_mode = gradient_mode
+        self.fd_step = float(fd_step)
+        self.failure = failure
+        self.failure_value = None if failure_value is None else float(failure_value)
+        self.validate = validate
+        self.label = label
+        self.key = response_key if response_key is not None else ("signorini.optimize", next(_UID))
+        self.records: list[Evaluation] = []
+        self.warnings: list[str] = []
+        self._seen_logs: set = set()
+        self._cache: dict[bytes, Evaluation] = {}
+        self._grads: dict[bytes, np.ndarray] = {}  # fd mode: gradients by point
+        self._fns: dict[int, tuple] = {}  # id(model) -> (model, fn)
+        self._solutions: dict[bytes, object] = {}  # the last and the best solution
+        self._offset = 0
+        self.history = Path(history) if history is not None else None
+        if self.history is not None:
+            if append and self.history.exists():
+                self._offset = len(read_history(self.history))
+            else:
+                self._write_header(self.history)
+
+    # ------------------------------------------------------------ public API
+    def fun(self, x) -> float:
+        """F(x) (one solve at a new point, none at a point already evaluated)."""
+        return self.evaluate(x).F
+
+    def jac(self, x) -> np.ndarray:
+        """DF/Dx: the DDM gradient of the evaluation at x (``"fd"``: central differences)."""
+        x = self._point(x)
+        ev = self.evaluate(x)
+        if self.gradient_mode == "ddm" or not ev.ok:
+            return ev.grad.copy() if ev.grad is not None else np.zeros(len(self.names))
+        k = x.tobytes()
+        if k not in self._grads:
+            self._grads[k] = self._fd_gradient(x, ev)
+        return self._grads[k].copy()
+
+    def value_and_grad(self, x):
+        """(F, DF/Dx) at x, sharing one solve (``scipy.optimize.minimize(..., jac=True)``)."""
+        return self.fun(x), self.jac(x)
+
+    __call__ = fun
+
+    def params(self, x) -> dict:
+        """The parameter dict of the design point x."""
+        return {**self.problem.params, **dict(zip(self.names, (float(v) for v in self._point(x))))}
+
+    def evaluate(self, x) -> Evaluation:
+        """The (cached) evaluation at x: value, and in ``"ddm"`` mode the gradient."""
+        x = self._point(x)
+        k = x.tobytes()
+        ev = self._cache.get(k)
+        if ev is None:
+            kind = "value+gradient" if self.gradient_mode == "ddm" else "value"
+            ev = self._solve(x, with_grad=self.gradient_mode == "ddm", kind=kind)
+        return ev
+
+    def lookup(self, x, rtol: float = 1e-13) -> Evaluation | None:
+        """The evaluation at x (bit-identical, else the nearest one within ``rtol``
+        relative distance); None if x was not evaluated."""
+        x = self._point(x)
+        ev = self._cache.get(x.tobytes())
+        if ev is not None:
+            return ev
+        best, dist = None, math.inf
+        for e in self._cache.values():
+            d = float(np.linalg.norm(e.x - x))
+            if d < dist:
+                best, dist = e, d
+        if best is not None and dist <= rtol * max(float(np.linalg.norm(x)), 1.0):
+            return best
+        return None
+
+    @property
+    def n_solves(self) -> int:
+        """Solves done (= evaluations recorded)."""
+        return len(self.records)
+
+    @property
+    def n_failed(self) -> int:
+        return sum(not r.ok for r in self.records)
+
+    @property
+    def best(self) -> Evaluation | None:
+        """The successful evaluation of the lowest F with a gradient (``"ddm"``) or
+        any successful value evaluation (``"fd"``)."""
+        good = [r for r in self.records if r.ok and r.kind != "fd"]
+        return min(good, key=lambda r: r.F) if good else None
+
+    def solution(self, x=None):
+        """The :class:`~signorini.solution.Solution` at x (default: the best point).
+        The last and the best solutions are kept; another point is solved again
+        (with sensitivities in ``"ddm"`` mode; recorded as kind ``"final"``)."""
+        if x is None:
+            b = self.best
+            if b is None:
+                raise InputError("no successful evaluation yet")
+            x = b.x
+        x = self._point(x)
+        sol = self._solutions.get(x.tobytes())
+        if sol is None:
+            self._solve(x, with_grad=self.gradient_mode == "ddm", kind="final", keep=True)
+            sol = self._solutions.get(x.tobytes())
+            if sol is None:
+                rec = self.records[-1]
+                raise rec.error if rec.error is not None else InputError(rec.reason)
+        return sol
+
+    def write_csv(self, path) -> Path:
+        """Write every evaluation of this objective (see :func:`read_history`)."""
+        path = Path(path)
+        self._write_header(path)
+        with open(path, "a", newline="") as f:
+            wr = csv.writer(f)
+            for r in self.records:
+                wr.writerow(self._row(r))
+        return path
+
+    # -------------------------------------------------------------- internals
+    def _point(self, x) -> np.ndarray:
+        x = np.array(x, dtype=float).ravel()  # a copy
+        if x.size != len(self.names):
+            raise InputError(f"the design point has {x.size} value(s), expected {len(self.names)} "
+                             f"({self.names})")
+        return x + 0.0  # no -0.0: the cache key is the bytes of x
+
+    def _fn(self, model):
+        entry = self._fns.get(id(model))
+        if entry is None or entry[0] is not model:
+            fn = self.response(model) if self.factory else self.response
+            if not callable(fn):
+                raise InputError("the response factory must return a callable fn(w, params, t)")
+            entry = (model, fn)
+            self._fns[id(model)] = entry
+        return entry[1]
+
+    @contextlib.contextmanager
+    def _quiet(self):
+        """Each distinct warning of the solves is logged and warned once per objective."""
+        flt = _OncePerMessage(self._seen_logs)
+        log.addFilter(flt)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", SignoriniWarning)
+                yield
+        finally:
+            log.removeFilter(flt)
+        for w in caught:
+            msg = str(w.message)
+            if issubclass(w.category, SignoriniWarning) and msg in self.warnings:
+                continue
+            if issubclass(w.category, SignoriniWarning):
+                self.warnings.append(msg)
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+    def _solve(self, x, *, with_grad: bool, kind: str, keep: bool = True) -> Evaluation:
+        t0 = time.perf_counter()
+        k = x.tobytes()
+        names = self.names
+        status, reason, err, sol, F, g, its, n_inc, cuts, warns = ("ok", "", None, None, math.nan, None, 0,
+                                                                     0, 0, [])
+        with self._quiet():
+            try:
+                pvals = {n: float(v) for n, v in zip(names, x)}
+                if not np.all(np.isfinite(x)):
+                    raise InputError(f"the design point is not finite: {pvals}")
+                if self.validate is not None:
+                    self.validate({**self.problem.params, **pvals})
+                pb = self.problem.with_params(**pvals)
+                sol = solve(pb, steps=self.steps, sensitivities=names if with_grad else (),
+                            options=self.options, solver=self.solver, label=self.label)
+            except ConvergenceError as e:
+                status, reason, err = "failed", str(e), e
+                part = e.partial
+                if part is not None:
+                    its = sum(s.iterations for s in part.log)
+                    n_inc = len(part.increments)
+                    cuts = sum(not s.converged for s in part.log)
+                    warns = list(part.warnings)
+            except InputError as e:
+                status, reason, err = "invalid", str(e), e
+            if sol is not None:
+                its = sum(s.iterations for s in sol.log)
+                n_inc = len(sol.increments)
+                cuts = sum(not s.converged for s in sol.log)
+                warns = list(sol.warnings)
+                val, dv = sol.response(self._fn(sol.model), self.increment, with_sensitivities=with_grad,
+                                       key=self.key)
+                if np.size(val) != 1:
+                    raise InputError("the response must return a scalar, got an array of shape "
+                                     f"{np.shape(val)}")
+                F = float(np.asarray(val).reshape(()))
+                if with_grad:
+                    g = np.array([float(np.asarray(dv[n]).reshape(())) for n in names])
+                if not np.isfinite(F) or (g is not None and not np.all(np.isfinite(g))):
+                    status, reason = "failed", f"the response or its gradient is not finite (F = {F})"
+                    err = ConvergenceError(reason, partial=sol)
+        if status != "ok":
+            if self.failure == "raise":
+                raise err
+            F, g = self._penalty(x, err)
+            if kind == "fd":
+                g = None  # a perturbed point of a difference quotient has no gradient of its own
+        ev = Evaluation(self._offset + len(self.records) + 1, kind, x, float(F),
+                        None if g is None else np.asarray(g, dtype=float), status, reason, its, n_inc,
+                        cuts, time.perf_counter() - t0, warns, err)
+        self.records.append(ev)
+        if kind != "final" or k not in self._cache:
+            self._cache[k] = ev
+        if ev.ok and sol is not None and keep and kind != "fd":
+            b = self.best
+            keys = {k}
+            if b is not None:
+                keys.add(b.x.tobytes())
+            self._solutions = {kk: s for kk, s in {**self._solutions, k: sol}.items() if kk in keys}
+        if self.history is not None:
+            with open(self.history, "a", newline="") as f:
+                csv.writer(f).writerow(self._row(ev))
+        log.info("%s evaluation %d (%s): F = %.10g%s, %d Newton iterations, %.2f s%s", self.label,
+                 ev.index, kind, ev.F, "" if ev.grad is None else f", |grad| = {ev.grad_norm:.4g}",
+                 its, ev.time, "" if ev.ok else f" [{status}: {reason.splitlines()[0][:200]}]")
+        return ev
+
+    def _penalty(self, x, err):
+        """(F_fail, gradient) of a failed point (module docstring)."""
+        good = [r for r in self.records if r.ok]
+        if self.failure_value is not None:
+            Ff = self.failure_value
+        elif good:
+            Fs = np.array([r.F for r in good])
+            scale = float(np.abs(Fs).max()) or 1.0
+            Ff = float(Fs.max()) + 10.0 * scale
+        else:
+            raise err  # nothing to compare with: the start point itself cannot be solved
+        g = np.zeros(len(self.names))
+        if good:
+            last = good[-1]
+            d = x - last.x
+            dd = float(d @ d)
+            if dd > 0 and np.isfinite(dd):
+                a = float(last.grad @ d) if last.grad is not None else 0.0
+                slope = max(6.0 * (Ff - last.F) - a, 2.0 * (Ff - last.F))
+                g = slope * d / dd
+                if not np.all(np.isfinite(g)):
+                    g = np.zeros(len(self.names))
+        return Ff, g
+
+    def _fd_gradient(self, x, ev) -> np.ndarray:
+        """Central differences of the value (one-sided where a perturbed solve fails)."""
+        g = np.zeros(len(self.names))
+        for i in range(len(self.names)):
+            h = self.fd_step * max(abs(x[i]), 1.0)
+            xp, xm = x.copy(), x.copy()
+            xp[i] += h
+            xm[i] -= h
+            ep, em = (self._cache.get(y.tobytes()) or self._solve(y, with_grad=False, kind="fd")
+                      for y in (xp, xm))
+            if ep.ok and em.ok:
+                g[i] = (ep.F - em.F) / (xp[i] - xm[i])
+            elif ep.ok:
+                g[i] = (ep.F - ev.F) / (xp[i] - x[i])
+            elif em.ok:
+                g[i] = (ev.F - em.F) / (x[i] - xm[i])
+        return g
+
+    def _columns(self) -> list[str]:
+        return (["eval", "kind", "status", "F", "grad_norm"] + [f"x_{n}" for n in self.names]
+                + [f"dF_d{n}" for n in self.names]
+                + ["newton_iterations", "increments", "cuts", "time_s", "reason"])
+
+    def _write_header(self, path: Path) -> None:
+        with open(path, "w", newline="") as f:
+            csv.writer(f).writerow(self._columns())
+
+    def _row(self, r: Evaluation) -> list:
+        g = r.grad if r.grad is not None else [math.nan] * len(self.names)
+        num = lambda v: repr(float(v) + 0.0)  # exact round trip of x for resuming
+        return ([r.index, r.kind, r.status, num(r.F), num(r.grad_norm)] + [num(v) for v in r.x]
+                + [num(v) for v in g] + [r.newton_iterations, r.increments, r.cuts, f"{r.time:.4f}",
+                                         r.reason.splitlines()[0] if r.reason else ""])
+
+
+def read_history(path, names: Sequence[str] | None = None) -> list[Evaluation]:
+    """The evaluations of a history CSV written by an :class:`Objective`
+    (``names``: the parameter order; default the file's ``x_*`` columns)."""
+    path = Path(path)
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return []
+    if names is None:
+        names = [c[2:] for c in rows[0] if c.startswith("x_")]
+    missing = [n for n in names if f"x_{n}" not in rows[0]]
+    if missing:
+        raise InputError(f"the history {str(path)!r} has no column for {missing}")
+    out = []
+    for r in rows:
+        grad = np.array([float(r[f"dF_d{n}"]) for n in names])
+        out.append(Evaluation(int(r["eval"]), r["kind"], np.array([float(r[f"x_{n}"]) for n in names]),
+                              float(r["F"]), None if np.all(np.isnan(grad)) else grad, r["status"],
+                              r.get("reason", ""), int(r["newton_iterations"]), int(r["increments"]),
+                              int(r.get("cuts") or 0), float(r["time_s"])))
+    return out
+
+
+def _projected(g, x, bounds):
+    """The gradient with the components that push against an active bound removed."""
+    if bounds is None or g is None:
+        return g
+    g = np.array(g, dtype=float)
+    for i, (lo, hi) in enumerate(bounds):
+        if lo is not None and x[i] <= lo and g[i] > 0:
+            g[i] = 0.0
+        if hi is not None and x[i] >= hi and g[i] < 0:
+            g[i] = 0.0
+    return g
+
+
+def minimize(objective: Objective, x0, method: str = "BFGS", *, bounds=None, constraints=(),
+             gtol: float = 1e-6, maxiter: int = 100, callback: Callable | None = None,
+             options: dict | None = None):
+    """Minimise an :class:`Objective` with :func:`scipy.optimize.minimize`.
+
+    Args:
+        objective: the :class:`Objective` (its ``fun`` and ``jac`` share one solve per point).
+        x0: the start design; it must solve (else its error is raised).
+        method: ``"BFGS"``, ``"L-BFGS-B"`` or ``"SLSQP"``.
+        bounds: sequence of (low, high) per parameter (None for no bound);
+            L-BFGS-B and SLSQP only.
+        constraints: SLSQP constraints (passed through).
+        gtol: BFGS: max |grad F_i| at convergence; L-BFGS-B: the same on the
+            projected gradient; SLSQP: its ``ftol`` (precision goal on F).
+        maxiter: iteration limit.
+        callback: ``callback(record)`` after every iteration, with the
+            :attr:`iterations_log` entry (dict).
+        options: further SciPy options (override the above).
+
+    Returns:
+        SciPy's ``OptimizeResult`` (``x``, ``fun``, ``jac``, ``nit``, ``nfev``,
+        ``njev``, ``success``, ``message``) with ``iterations_log`` (one dict per
+        iteration, 0 = start: ``iteration, F, grad_norm, grad_inf, x, evaluations,
+        solves, failed, time``), ``evaluations`` (the records of this call),
+        ``n_solves``, ``n_failed``, ``time`` [s] and ``names``.
+    """
+    import scipy.optimize as so
+
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if bounds is not None and method == "BFGS":
+        raise InputError("BFGS takes no bounds: use method='L-BFGS-B' or 'SLSQP' (or leave the "
+                         "design unbounded and let the failure handling reject invalid points)")
+    if constraints and method != "SLSQP":
+        raise InputError("constraints need method='SLSQP'")
+    if bounds is not None:
+        bounds = [(None if lo is None or not np.isfinite(lo) else float(lo),
+                   None if hi is None or not np.isfinite(hi) else float(hi)) for lo, hi in bounds]
+        if len(bounds) != len(objective.names):
+            raise InputError(f"bounds has {len(bounds)} entries, expected {len(objective.names)}")
+    t_start = time.perf_counter()
+    n0 = len(objective.records)
+    x0 = objective._point(x0)
+    if bounds is not None:
+        lo = np.array([-np.inf if b[0] is None else b[0] for b in bounds])
+        hi = np.array([np.inf if b[1] is None else b[1] for b in bounds])
+        x0 = np.clip(x0, lo, hi) + 0.0
+    try:
+        ev0 = objective.evaluate(x0)
+        err = None if ev0.ok else (ev0.error or InputError(ev0.reason))
+    except (ConvergenceError, InputError) as e:
+        err = e
+    if err is not None:
+        where = dict(zip(objective.names, x0.tolist()))
+        if isinstance(err, ConvergenceError):
+            raise ConvergenceError(f"the optimisation cannot start: the solve at the start design "
+                                   f"{where} failed: {err}", partial=err.partial) from err
+        raise InputError(f"the optimisation cannot start: the start design {where} is invalid: "
+                         f"{err}") from err
+
+    log_rows: list[dict] = []
+
+    def entry(x) -> dict:
+        ev = objective.lookup(x)
+        if ev is None or (objective.gradient_mode == "fd" and ev.kind == "fd"):
+            ev = objective.evaluate(x)
+        g = objective.jac(ev.x)
+        gp = _projected(g, ev.x, bounds)
+        recs = objective.records[n0:]
+        row = {"iteration": len(log_rows), "F": ev.F, "grad_norm": float(np.linalg.norm(gp)),
+               "grad_inf": float(np.max(np.abs(gp))), "x": ev.x.tolist(),
+               "evaluations": len(recs), "solves": len(recs),
+               "failed": sum(not r.ok for r in recs), "time": time.perf_counter() - t_start}
+        log_rows.append(row)
+        return row
+
+    entry(x0)
+
+    def cb(xk, *args):
+        row = entry(xk)
+        log.info("%s iteration %d: F = %.10g, |grad| = %.4g, %d solves", objective.label,
+                 row["iteration"], row["F"], row["grad_norm"], row["solves"])
+        if callback is not None:
+            callback(row)
+
+    opts = {"maxiter": int(maxiter)}
+    if method == "BFGS":
+        opts["gtol"] = float(gtol)
+    elif method == "L-BFGS-B":
+        opts["gtol"] = float(gtol)
+    else:
+        opts["ftol"] = float(gtol)
+    opts.update(options or {})
+    kw = {"bounds": bounds} if bounds is not None else {}
+    if method == "SLSQP" and constraints:
+        kw["constraints"] = constraints
+    res = so.minimize(objective.fun, x0, jac=objective.jac, method=method, callback=cb,
+                      options=opts, **kw)
+    final = objective.lookup(res.x)
+    if final is None or not final.ok:  # never hand back a failed point
+        good = [r for r in objective.records[n0:] if r.ok and r.kind != "fd"]
+        best = min(good, key=lambda r: r.F)
+        res.x, res.fun = best.x.copy(), best.F
+        res.message = f"{res.message} (the returned point failed; the best good point is returned)"
+        res.success = False
+        final = best
+    res.jac = objective.jac(final.x)
+    recs = objective.records[n0:]
+    res.iterations_log = log_rows
+    res.evaluations = recs
+    res.n_solves = len(recs)
+    res.n_failed = sum(not r.ok for r in recs)
+    res.time = time.perf_counter() - t_start
+    res.names = list(objective.names)
+    res.method = method
+    return res
