@@ -245,6 +245,29 @@ def profile(steps: int, solver: str, out: Path) -> None:
     p(f"  {'total':22s} {total:6d} {total / n_it:6.2f} {total / n_inc:6.2f}")
     p(f"eager (op-by-op) primitive dispatches outside jit: {eager} "
       f"({eager / n_inc:.1f} per increment)")
+    # residual alone against residual + Jacobian blocks (same compiled model, final state)
+    import jax
+    import jax.numpy as jnp
+
+    from signorini.params import as_jax
+
+    inc = sol.increments[-1]
+    state_n = sol.increments[-2].state
+    w, prm = jnp.asarray(inc.w), as_jax(pb.params)
+    cases = counters["Model._cases"].f(w, prm, inc.t, state_n)
+    kern = {"residual only (Model._residual)": lambda: model._residual(w, prm, inc.t, state_n, cases),
+            "residual + Jacobian blocks (Model._local)": lambda: counters["Model._local"].f(
+                w, prm, inc.t, state_n, cases)}
+    n_cells = model.conn.shape[0]
+    p(f"\nkernels at the final state, {n_cells} cells (best of 10, synchronised):")
+    for label, f in kern.items():
+        jax.block_until_ready(f())
+        ts = []
+        for _ in range(10):
+            t0 = time.perf_counter()
+            jax.block_until_ready(f())
+            ts.append(time.perf_counter() - t0)
+        p(f"  {label:42s} {1e3 * min(ts):7.3f} ms  {1e6 * min(ts) / n_cells:6.2f} us/cell")
     for sort in ("tottime", "cumulative"):
         p(f"\n--- top 35 by {sort} ---")
         s = io.StringIO()
