@@ -138,6 +138,15 @@ def _common(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: s
     _solver_options(p)
 
 
+def _dask_options(p):
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of an existing Dask scheduler (default: a local cluster)")
+    g.add_argument("--sequential", action="store_true", help="run the tasks here, one after another")
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                   help="workers of the local cluster (default: the number of cores)")
+
+
 def _solver_options(p):
     p.add_argument("--solver", default="superlu", choices=["superlu", "pardiso", "umfpack"],
                    help="sparse direct solver (pardiso needs pypardiso, umfpack scikit-umfpack)")
@@ -240,7 +249,31 @@ def build_parser() -> argparse.ArgumentParser:
                    help="DDM (exact, one solve per design) or central differences (11 solves)")
     o.add_argument("--resume", action="store_true",
                    help="continue from the best point of each mu's history.csv in --out")
+    _dask_options(o)
     _solver_options(o)
+
+    sw = sub.add_parser(
+        "sweep", formatter_class=fmt,
+        help="run a command over a grid of parameter values as independent Dask tasks",
+        description="Run COMMAND once per point of the grid (the Cartesian product of the --set "
+                    "and --option lists), each as an independent task on Dask (a local cluster "
+                    "over the machine's cores by default, or --scheduler ADDRESS), and collect "
+                    "every summary.json into DIR/sweep.csv (one row per point; nested entries "
+                    "flattened with dots) and DIR/sweep.json. A failing point is recorded with "
+                    "its exit code and reason; the sweep goes on. Arguments after -- are passed "
+                    "to every run, e.g.: signorini sweep hertz --out s --set R=1,1.5,2 -- --no-fd")
+    sw.add_argument("sweep_command", metavar="COMMAND",
+                    choices=["hertz", "hertz-friction", "forging", "optimise-forging", "run"],
+                    help="the command to run at every point")
+    sw.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    sw.add_argument("--set", action="append", default=[], metavar="NAME=V1,V2,...",
+                    help="values of a --set parameter (repeatable); START:STOP:NUM for a linspace")
+    sw.add_argument("--option", action="append", default=[], metavar="NAME=V1,V2,...",
+                    help="values of a command option, e.g. refine=0,1 (passed as --refine 0 ...)")
+    _dask_options(sw)
+    v = sw.add_mutually_exclusive_group()
+    v.add_argument("-q", "--quiet", action="store_true", help="print only errors and the result")
+    v.add_argument("-v", "--verbose", action="store_true", help="log more")
 
     r = sub.add_parser(
         "run", formatter_class=fmt, help="solve a problem described in a TOML file",
@@ -280,7 +313,13 @@ class _OnceFilter(logging.Filter):
 
 def main(argv=None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    extra: list[str] = []
+    if argv[:1] == ["sweep"] and "--" in argv:  # arguments after -- go to every run of the sweep
+        k = argv.index("--")
+        argv, extra = argv[:k], argv[k + 1:]
     args = parser.parse_args(argv)
+    args.extra = extra
     _configure_logging(args)
     from . import progress
 
@@ -360,9 +399,16 @@ def _dispatch(args) -> int:
             raise InputError(f"--mu expects comma-separated numbers, e.g. 0.1,0.2; got {args.mu!r}") from None
         if not mus or any(not 0 <= m < float("inf") for m in mus):
             raise InputError(f"--mu needs friction coefficients >= 0, got {args.mu!r}")
-        s = forging_opt.run(args.out, mus, mesh=forging.parse_mesh(args.mesh), steps=args.steps,
-                            method=args.method, gtol=args.gtol, maxiter=args.maxiter,
-                            gradient=args.gradient, resume=args.resume, solver=args.solver)
+        kwargs = dict(mesh=forging.parse_mesh(args.mesh), steps=args.steps, method=args.method,
+                      gtol=args.gtol, maxiter=args.maxiter, gradient=args.gradient,
+                      resume=args.resume, solver=args.solver)
+        if len(mus) > 1 and not args.sequential:  # one Dask task per mu
+            from . import sweep
+
+            s = sweep.optimise_mus_parallel(args.out, mus, scheduler=args.scheduler,
+                                            n_workers=args.workers, **kwargs)
+        else:
+            s = forging_opt.run(args.out, mus, **kwargs)
         print(f"{'mu':>5} {'F(cylinder)':>12} {'F*':>10} {'max|r-h0|/h0':>13} {'r0 range':>9} "
               f"{'iters':>6} {'solves':>6} {'time [s]':>8}")
         for r in s.get("runs", []):
@@ -372,6 +418,21 @@ def _dispatch(args) -> int:
             print(f"{r['mu']:5g} {r['F_start']:12.4e} {r['F_opt']:10.3e} "
                   f"{r['max_rel_deviation_from_r_opt']:13.2e} {r['r0_range']['max_minus_min']:9.4f} "
                   f"{r['iterations']:6d} {r['solves']:6d} {r['time_wall_s']:8.1f}")
+    elif args.command == "sweep":
+        from . import sweep
+
+        try:
+            points = sweep.grid(args.set + ["--" + o for o in args.option])
+        except ValueError as e:
+            raise InputError(f"sweep: {e}") from None
+        csv_path = sweep.run_sweep(args.sweep_command, points, args.out, extra_args=args.extra,
+                                   scheduler=args.scheduler, n_workers=args.workers,
+                                   sequential=args.sequential)
+        table = sweep.read_csv(csv_path)
+        failed = [r for r in table if str(r.get("exit_code")) not in ("0", "0.0")]
+        print(f"sweep of {args.sweep_command}: {len(table)} points, {len(failed)} failed; "
+              f"table in {csv_path}")
+        return 1 if failed else 0
     elif args.command == "run":
         from . import problemfile
 

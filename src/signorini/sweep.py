@@ -1,0 +1,440 @@
+"""Parameter sweeps and per-mu optimisations as independent tasks on Dask.
+
+A *sweep* runs one ``signorini`` command (``hertz``, ``hertz-friction``,
+``forging``, ``optimise-forging``, ``run``) once per point of a grid of
+parameter values, each point as an independent task, and collects every
+point's ``summary.json`` into one table::
+
+    from signorini.sweep import grid, run_sweep
+    pts = grid(["R=1.0,1.1", "E=100,200"])        # 4 points, R varies slowest
+    run_sweep("hertz", pts, "results/sweep", extra_args=["--no-fd"])
+
+writes ``results/sweep/point_<k>/`` (the command's own output for point k),
+``results/sweep/sweep.csv`` (one row per point, in grid order) and
+``results/sweep/sweep.json`` (the grid, exit codes and full summaries).
+
+Where the tasks run:
+
+* by default on a :class:`distributed.LocalCluster` started for the sweep
+  (``n_workers`` worker *processes*, default ``os.cpu_count()``, one thread
+  each) and closed afterwards;
+* ``scheduler="tcp://host:8786"``: on an existing Dask cluster (its workers
+  must have ``signorini`` installed and see the output directory);
+* ``sequential=True``: one after another in this process, without Dask.
+
+Every task calls :func:`signorini.cli.main` with the same arguments in all
+three cases, so the results are the same (tested: identical to the last bit
+for ``hertz``). Each worker runs one single-threaded JAX/XLA
+(:data:`WORKER_ENV`), so N workers use N cores and do not oversubscribe.
+
+Grid names: a plain name (``R``, ``mu``, ``phi0``) is passed as
+``--set NAME=VALUE``; a name starting with ``--`` is passed as that option,
+``--NAME VALUE`` (e.g. ``--refine=0,1`` or, for ``optimise-forging``, which
+has no ``--set``, ``--mu=0.1,0.2``).
+
+A point that fails (exit code 1: the solve failed; 2: bad input, also
+argparse usage errors) does not stop the sweep: its row has the exit code,
+``status`` and ``reason`` (the summary's ``reason``, or the command's error
+message) and whatever summary it wrote.
+
+CSV columns (:func:`flatten` for the summary part), in this order: the swept
+names; ``exit_code``, ``status``, ``reason``, ``dir`` (the point's output
+directory relative to ``out``); then the summary's entries (``status`` and
+``reason`` excepted), in first-seen order over the points:
+
+* nested dicts are flattened with dots (``p0.computed``, ``params.R``);
+* numbers, booleans, strings and ``null`` are kept as they are (floats written
+  with ``repr``, so they round-trip exactly);
+* a list of at most :data:`MAX_LIST_ITEMS` items that are not all strings is
+  expanded by index (``newton_iterations.0``, ``loads.2.c_over_a``);
+  an empty or longer list, or a list of strings (``warnings``), is reduced to its length
+  (``newton_residuals.0.len``, ``warnings.len``).
+
+:func:`optimise_mus_parallel` runs the per-mu preform optimisations of
+``optimise-forging`` (:func:`signorini.problems.forging_opt.optimise_mu`) as
+parallel tasks and writes the same files as
+:func:`signorini.problems.forging_opt.run`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io as _io
+import itertools
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+#: environment of the worker processes: one thread for XLA and BLAS/OpenMP per worker
+WORKER_ENV = {
+    "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+}
+
+#: lists up to this length are expanded by index in the CSV; longer ones give their length
+MAX_LIST_ITEMS = 4
+
+_FIXED = ("exit_code", "status", "reason", "dir")
+
+
+# --------------------------------------------------------------------------- grid
+
+def _value(text: str):
+    """'3' -> 3, '1.5' -> 1.5, anything else stays text."""
+    text = text.strip()
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def grid(assignments: list[str]) -> list[dict]:
+    """The Cartesian product of ``NAME=v1,v2,...`` items as a list of {name: value}.
+
+    ``NAME=start:stop:num`` gives ``num`` equally spaced values from start to stop
+    (both included, as :func:`numpy.linspace`). Values that read as whole numbers
+    become ints, other numbers floats. The first item varies slowest. A name given
+    twice, an empty value list or a bad range is a ValueError.
+    """
+    names, axes = [], []
+    for item in assignments:
+        name, sep, values = item.partition("=")
+        name = name.strip()
+        if not sep or not name or not values.strip():
+            raise ValueError(f"{item!r}: expected NAME=V1,V2,... or NAME=START:STOP:NUM")
+        if name in names:
+            raise ValueError(f"{name!r} is swept twice; give each name once")
+        if ":" in values and "," not in values:
+            parts = values.split(":")
+            try:
+                start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
+                if len(parts) != 3 or num < 1:
+                    raise ValueError
+            except (ValueError, IndexError):
+                raise ValueError(f"{item!r}: a range is START:STOP:NUM with NUM >= 1 "
+                                 "points") from None
+            import numpy as np
+
+            vals = [float(v) for v in np.linspace(start, stop, num)]
+        else:
+            vals = [_value(v) for v in values.split(",") if v.strip()]
+        if not vals:
+            raise ValueError(f"{item!r}: no values")
+        names.append(name)
+        axes.append(vals)
+    return [dict(zip(names, combo)) for combo in itertools.product(*axes)]
+
+
+def point_args(command: str, point: dict, out, extra_args=()) -> list[str]:
+    """The ``signorini`` argument list of one grid point."""
+    args = [command, "--out", str(out), "-q"]
+    for name, value in point.items():
+        v = repr(value) if isinstance(value, float) else str(value)
+        if name.startswith("-"):
+            args += [name, v]
+        else:
+            args += ["--set", f"{name}={v}"]
+    return args + [str(a) for a in extra_args]
+
+
+# --------------------------------------------------------------------------- tasks
+
+def _single_threaded_env() -> None:
+    """Before JAX is first imported in this process: one XLA/BLAS thread (a no-op
+    afterwards, and for variables already set)."""
+    for k, v in WORKER_ENV.items():
+        os.environ.setdefault(k, v)
+
+
+def run_point(args: list[str], out: str) -> dict:
+    """One task: ``signorini.cli.main(args)`` in this process, with its output captured.
+
+    Returns {"exit_code", "summary" (the point's summary.json or None), "stderr"
+    (the last 4000 characters), "time_s"}. Never raises for a failing point.
+    """
+    _single_threaded_env()
+    from . import cli
+
+    summary_path = Path(out) / "summary.json"
+    if summary_path.is_file():  # a stale summary from an earlier sweep is not this run's
+        summary_path.unlink()
+    err, std = _io.StringIO(), _io.StringIO()
+    t0 = time.perf_counter()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std):
+        try:
+            code = cli.main(list(args))
+        except SystemExit as e:  # argparse usage errors
+            code = e.code if isinstance(e.code, int) else 2
+        except Exception as e:  # noqa: BLE001  (an unexpected error is this point's failure)
+            print(f"signorini: unexpected error: {type(e).__name__}: {e}", file=err)
+            code = 3
+    summary = None
+    if summary_path.is_file():
+        try:
+            summary = json.loads(summary_path.read_text())
+        except (OSError, ValueError):
+            summary = None
+    return {"exit_code": int(code), "summary": summary, "stderr": err.getvalue()[-4000:],
+            "stdout": std.getvalue()[-4000:], "time_s": time.perf_counter() - t0}
+
+
+@contextlib.contextmanager
+def dask_client(scheduler=None, n_workers=None):
+    """A :class:`distributed.Client`: to ``scheduler`` if given, else to a new
+    LocalCluster of ``n_workers`` single-threaded worker processes (closed on exit)."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        with Client(scheduler) as client:
+            yield client
+        return
+    n = int(n_workers or os.cpu_count() or 1)
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                      env=dict(WORKER_ENV)) as cluster, Client(cluster) as client:
+        yield client
+
+
+def map_tasks(fn, arglists: list[tuple], *, scheduler=None, n_workers=None, sequential=False,
+              client=None) -> list:
+    """``[fn(*a) for a in arglists]``, as independent Dask tasks unless ``sequential``.
+
+    The results come back in the order of ``arglists``. ``client``: an open
+    :class:`distributed.Client` to use (else one is made by :func:`dask_client`).
+    """
+    if sequential:
+        return [fn(*a) for a in arglists]
+    if client is not None:
+        futures = [client.submit(fn, *a, pure=False) for a in arglists]
+        return client.gather(futures)
+    with dask_client(scheduler, n_workers) as c:
+        return map_tasks(fn, arglists, client=c)
+
+
+# --------------------------------------------------------------------------- table
+
+def flatten(d, prefix: str = "") -> dict:
+    """A summary as flat {column: scalar} (rules in the module docstring)."""
+    out: dict = {}
+    if isinstance(d, dict):
+        for k, v in d.items():
+            out.update(flatten(v, f"{prefix}{k}."))
+        return out
+    key = prefix[:-1]
+    if isinstance(d, (list, tuple)):
+        if d and len(d) <= MAX_LIST_ITEMS and not all(isinstance(x, str) for x in d):
+            for i, v in enumerate(d):
+                out.update(flatten(v, f"{prefix}{i}."))
+        else:
+            out[f"{key}.len"] = len(d)
+        return out
+    out[key] = d
+    return out
+
+
+def _reason(res: dict) -> str:
+    s = res.get("summary") or {}
+    if res["exit_code"] == 0:
+        return str(s.get("reason", "")) if s.get("reason") else ""
+    if s.get("reason"):
+        return str(s["reason"])
+    lines = [ln for ln in res.get("stderr", "").splitlines() if ln.strip()]
+    errs = [ln for ln in lines if ln.startswith("signorini:") or "error" in ln.lower()]
+    return (errs or lines or [f"exit code {res['exit_code']}"])[0]
+
+
+def _status(res: dict) -> str:
+    s = res.get("summary") or {}
+    if "status" in s:
+        return str(s["status"])
+    return {0: "ok", 1: "failed", 2: "bad input"}.get(res["exit_code"], "error")
+
+
+def _cell(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return repr(v)
+    return v
+
+
+def rows(grid_points: list[dict], results: list[dict], dirs: list[str]) -> tuple[list[str], list[dict]]:
+    """The CSV header and rows of a sweep."""
+    names = list(dict.fromkeys(k for p in grid_points for k in p))
+    body_cols: dict = {}
+    table = []
+    for p, res, d in zip(grid_points, results, dirs):
+        flat = {k: v for k, v in flatten(res.get("summary") or {}).items()
+                if k not in ("status", "reason")}
+        for k in flat:
+            body_cols.setdefault(k, None)
+        table.append({**p, "exit_code": res["exit_code"], "status": _status(res),
+                      "reason": _reason(res), "dir": d, **flat})
+    header = names + [c for c in _FIXED if c not in names] + \
+        [c for c in body_cols if c not in names and c not in _FIXED]
+    return header, table
+
+
+def write_csv(path, header: list[str], table: list[dict]) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, restval="", extrasaction="ignore")
+        w.writeheader()
+        for r in table:
+            w.writerow({k: _cell(v) for k, v in r.items()})
+
+
+def read_csv(path) -> list[dict]:
+    """``sweep.csv`` back as dicts; numbers as int/float, empty cells as None."""
+    def conv(x):
+        if x == "":
+            return None
+        return _value(x)
+    with open(path, newline="") as f:
+        return [{k: conv(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+
+# --------------------------------------------------------------------------- sweep
+
+def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), scheduler=None,
+              n_workers=None, sequential: bool = False, client=None) -> Path:
+    """Run ``signorini COMMAND`` at every grid point and collect the summaries.
+
+    Point k runs ``signorini.cli.main([command, "--out", out/point_<k>, "-q",
+    "--set", "NAME=VALUE", ..., *extra_args])`` (names starting with ``--`` are
+    passed as options instead, see the module docstring), as an independent
+    Dask task on a LocalCluster (default: ``n_workers`` = os.cpu_count()
+    single-threaded processes), on the cluster at ``scheduler``, on an open
+    ``client``, or here one after another (``sequential=True``).
+
+    Writes ``out/sweep.csv`` and ``out/sweep.json``; returns the path of the CSV.
+    Failing points are recorded (exit code, status, reason), never raised.
+    """
+    if not grid_points:
+        raise ValueError("the grid has no points")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    width = max(1, len(str(len(grid_points) - 1)))
+    dirs = [f"point_{k:0{width}d}" for k in range(len(grid_points))]
+    arglists = [(point_args(command, p, out / d, extra_args), str(out / d))
+                for p, d in zip(grid_points, dirs)]
+    t0 = time.perf_counter()
+    results = map_tasks(run_point, arglists, scheduler=scheduler, n_workers=n_workers,
+                        sequential=sequential, client=client)
+    wall = time.perf_counter() - t0
+    header, table = rows(grid_points, results, dirs)
+    csv_path = out / "sweep.csv"
+    write_csv(csv_path, header, table)
+    doc = {
+        "command": command,
+        "extra_args": [str(a) for a in extra_args],
+        "mode": "sequential" if sequential else ("client" if client is not None else
+                                                  (f"scheduler {scheduler}" if scheduler else
+                                                   f"local cluster, {n_workers or os.cpu_count()} workers")),
+        "time_wall_s": wall,
+        "n_points": len(grid_points),
+        "n_failed": sum(r["exit_code"] != 0 for r in results),
+        "points": [{"index": k, "point": p, "dir": d, "args": a[0], "exit_code": r["exit_code"],
+                    "status": _status(r), "reason": _reason(r), "time_s": r["time_s"],
+                    "stderr": r["stderr"], "summary": r["summary"]}
+                   for k, (p, d, a, r) in enumerate(zip(grid_points, dirs, arglists, results))],
+    }
+    with open(out / "sweep.json", "w") as f:
+        json.dump(doc, f, indent=1, default=_json_default, allow_nan=True)
+    return csv_path
+
+
+def _json_default(o):
+    try:
+        import numpy as np
+
+        if isinstance(o, np.generic):
+            return o.item()
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+    except ImportError:  # pragma: no cover
+        pass
+    return str(o)
+
+
+# --------------------------------------------------------------------------- forging optimisation
+
+def _optimise_one(out: str, mu: float, kwargs: dict) -> dict:
+    """One task: :func:`signorini.problems.forging_opt.optimise_mu` (never raises)."""
+    _single_threaded_env()
+    from .problems import forging_opt
+
+    t0 = time.perf_counter()
+    try:
+        return forging_opt.optimise_mu(Path(out), mu, **kwargs)
+    except Exception as e:  # noqa: BLE001  (one mu failing must not stop the others)
+        return {"mu": float(mu), "status": "failed", "reason": f"{type(e).__name__}: {e}",
+                "time_wall_s": time.perf_counter() - t0, "warnings": []}
+
+
+def optimise_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int = 50,
+                          method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50,
+                          gradient: str = "ddm", resume: bool = False, solver="superlu",
+                          rtol: float = 1e-11, phi_min=None, scheduler=None, n_workers=None,
+                          sequential: bool = False, client=None) -> dict:
+    """:func:`signorini.problems.forging_opt.run` with one Dask task per mu.
+
+    Same arguments, files and returned summary as ``forging_opt.run`` (plus
+    ``"parallel"`` in the summary): each task calls
+    :func:`~signorini.problems.forging_opt.optimise_mu`, which writes only
+    ``out/mu_<mu>/`` and returns its summary; ``shapes.png`` and
+    ``summary.json`` for all mu are written here. A mu whose task raises is
+    recorded as failed. Dask options as in :func:`run_sweep`.
+    """
+    import numpy as np
+
+    from . import io
+    from .errors import InputError
+    from .optimize import METHODS
+    from .problems import forging as fg
+    from .problems import forging_opt
+    from .runner import prepare_output
+
+    t0 = time.perf_counter()
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if gradient not in ("ddm", "fd"):
+        raise InputError(f"gradient must be 'ddm' or 'fd', got {gradient!r}")
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise InputError(f"steps must be a whole number >= 1, got {steps!r}")
+    try:
+        mus = [float(m) for m in mus]
+    except (TypeError, ValueError):
+        raise InputError(f"mus must be a list of friction coefficients, got {mus!r}") from None
+    if not mus or any(not (math.isfinite(m) and m >= 0) for m in mus):
+        raise InputError(f"mus must be non-negative finite numbers, got {mus}")
+    out = prepare_output(out)
+    forging_opt.base_problem(tuple(mesh))  # bad mesh input fails here, before any task
+    kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
+                  gradient=gradient, resume=resume, solver=solver, rtol=rtol,
+                  phi_min=forging_opt.PHI_MIN if phi_min is None else phi_min)
+    runs = map_tasks(_optimise_one, [(str(out), mu, kwargs) for mu in mus], scheduler=scheduler,
+                     n_workers=n_workers, sequential=sequential, client=client)
+    forging_opt._plot_shapes(out / "shapes.png", runs)
+    summary = {
+        "status": "converged" if all(r["status"] == "converged" for r in runs) else
+                  ("failed" if all(r["status"] == "failed" for r in runs) else "partial"),
+        "settings": {"mus": mus, "mesh": list(mesh), "steps": steps, "method": method, "gtol": gtol,
+                     "maxiter": maxiter, "gradient": gradient, "resume": resume, "r_opt": fg.H0,
+                     "start": forging_opt.START},
+        "runs": [{k: v for k, v in r.items() if k != "iterations_log"} for r in runs],
+        "time_wall_s": time.perf_counter() - t0,
+        "warnings": sorted({w for r in runs for w in r.get("warnings", [])}),
+        "parallel": "sequential" if sequential else ("client" if client is not None else
+                                                      (scheduler or f"local cluster, "
+                                                       f"{n_workers or os.cpu_count()} workers")),
+    }
+    io.write_json(out / "summary.json", summary)
+    return summary
