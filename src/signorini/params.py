@@ -14,6 +14,7 @@ differentiate any residual with respect to any of them (DDM pseudo-load).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterable, Mapping
 from typing import Union
 
@@ -67,11 +68,15 @@ def unit_tangents(params: Mapping, names: list[str]) -> dict:
     """Batched tangent pytree: entry k is 1 for ``names[k]`` and 0 elsewhere.
 
     Returns a dict of arrays of shape ``(len(names),)`` to be ``vmap``-ed over.
+    Built once per (parameter keys, names) and reused: the DDM asks for it
+    twice per increment, and building it op by op cost 0.3 ms each time.
     """
-    out = {}
-    for key in params:
-        out[key] = jnp.asarray([1.0 if key == n else 0.0 for n in names])
-    return out
+    return dict(_unit_tangents(tuple(params), tuple(names)))
+
+
+@functools.lru_cache(maxsize=64)
+def _unit_tangents(keys: tuple, names: tuple) -> tuple:
+    return tuple((key, jnp.asarray([1.0 if key == n else 0.0 for n in names])) for key in keys)
 
 
 def parse_assignment(text: str) -> tuple[str, float]:
