@@ -138,6 +138,13 @@ def _common(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: s
     _solver_options(p)
 
 
+def _forging_mesh_options(p):
+    p.add_argument("--mesh", default="10x20", metavar="NRxNZ",
+                   help="cells in the radial and axial directions")
+    p.add_argument("--steps", type=_positive_int, default=50, metavar="N",
+                   help="equal increments of the die stroke in every forging solve")
+
+
 def _dask_options(p):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--scheduler", metavar="ADDRESS",
@@ -217,10 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="output directory (created if needed; must be writable)")
     fg.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help=_set_help(FORGING_SET))
-    fg.add_argument("--mesh", default="10x20", metavar="NRxNZ",
-                    help="cells in the radial and axial directions")
-    fg.add_argument("--steps", type=_positive_int, default=50, metavar="N",
-                    help="equal increments of the die stroke")
+    _forging_mesh_options(fg)
     fg.add_argument("--no-fd", action="store_true",
                     help="skip the central-difference check (14 re-solves of the whole path)")
     _solver_options(fg)
@@ -238,9 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--out", required=True, metavar="DIR", help="output directory")
     o.add_argument("--mu", default="0.1,0.2,0.3", metavar="MU[,MU...]",
                    help="friction coefficients, one optimisation each")
-    o.add_argument("--mesh", default="10x20", metavar="NRxNZ", help="cells (radial x axial)")
-    o.add_argument("--steps", type=_positive_int, default=50, metavar="N",
-                   help="load increments of every forging solve")
+    _forging_mesh_options(o)
     o.add_argument("--method", default="BFGS", choices=["BFGS", "L-BFGS-B", "SLSQP"],
                    help="scipy.optimize method (L-BFGS-B, SLSQP: bounds phi >= 0.05)")
     o.add_argument("--gtol", type=_positive_float, default=1e-6, help="gradient tolerance")

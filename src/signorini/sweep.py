@@ -63,7 +63,6 @@ import csv
 import io as _io
 import itertools
 import json
-import math
 import os
 import time
 from pathlib import Path
@@ -393,48 +392,17 @@ def optimise_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int
     ``summary.json`` for all mu are written here. A mu whose task raises is
     recorded as failed. Dask options as in :func:`run_sweep`.
     """
-    import numpy as np
-
-    from . import io
-    from .errors import InputError
-    from .optimize import METHODS
-    from .problems import forging as fg
     from .problems import forging_opt
-    from .runner import prepare_output
 
-    t0 = time.perf_counter()
-    if method not in METHODS:
-        raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    if gradient not in ("ddm", "fd"):
-        raise InputError(f"gradient must be 'ddm' or 'fd', got {gradient!r}")
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise InputError(f"steps must be a whole number >= 1, got {steps!r}")
-    try:
-        mus = [float(m) for m in mus]
-    except (TypeError, ValueError):
-        raise InputError(f"mus must be a list of friction coefficients, got {mus!r}") from None
-    if not mus or any(not (math.isfinite(m) and m >= 0) for m in mus):
-        raise InputError(f"mus must be non-negative finite numbers, got {mus}")
-    out = prepare_output(out)
-    forging_opt.base_problem(tuple(mesh))  # bad mesh input fails here, before any task
-    kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
-                  gradient=gradient, resume=resume, solver=solver, rtol=rtol,
-                  phi_min=forging_opt.PHI_MIN if phi_min is None else phi_min)
-    runs = map_tasks(_optimise_one, [(str(out), mu, kwargs) for mu in mus], scheduler=scheduler,
-                     n_workers=n_workers, sequential=sequential, client=client)
-    forging_opt._plot_shapes(out / "shapes.png", runs)
-    summary = {
-        "status": "converged" if all(r["status"] == "converged" for r in runs) else
-                  ("failed" if all(r["status"] == "failed" for r in runs) else "partial"),
-        "settings": {"mus": mus, "mesh": list(mesh), "steps": steps, "method": method, "gtol": gtol,
-                     "maxiter": maxiter, "gradient": gradient, "resume": resume, "r_opt": fg.H0,
-                     "start": forging_opt.START},
-        "runs": [{k: v for k, v in r.items() if k != "iterations_log"} for r in runs],
-        "time_wall_s": time.perf_counter() - t0,
-        "warnings": sorted({w for r in runs for w in r.get("warnings", [])}),
-        "parallel": "sequential" if sequential else ("client" if client is not None else
-                                                      (scheduler or f"local cluster, "
-                                                       f"{n_workers or os.cpu_count()} workers")),
-    }
-    io.write_json(out / "summary.json", summary)
-    return summary
+    def mapper(out_, mus_, kwargs):
+        return map_tasks(_optimise_one, [(str(out_), mu, kwargs) for mu in mus_],
+                         scheduler=scheduler, n_workers=n_workers, sequential=sequential,
+                         client=client)
+
+    where = "sequential" if sequential else ("client" if client is not None else
+                                             (scheduler or f"local cluster, "
+                                              f"{n_workers or os.cpu_count()} workers"))
+    return forging_opt.run(out, mus, mesh=mesh, steps=steps, method=method, gtol=gtol,
+                           maxiter=maxiter, gradient=gradient, resume=resume, solver=solver,
+                           rtol=rtol, phi_min=forging_opt.PHI_MIN if phi_min is None else phi_min,
+                           mapper=mapper, extra_summary={"parallel": where})

@@ -217,7 +217,8 @@ def optimise_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method:
 
 def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50, gradient: str = "ddm",
-        resume: bool = False, solver="superlu", rtol: float = 1e-11, phi_min: float = PHI_MIN) -> dict:
+        resume: bool = False, solver="superlu", rtol: float = 1e-11, phi_min: float = PHI_MIN,
+        mapper=None, extra_summary: dict | None = None) -> dict:
     """Optimise the forging preform for each mu and write the results (module docstring).
 
     Args:
@@ -231,6 +232,10 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
         resume: continue from ``out/mu_<mu>/history.csv`` (restart at its best point;
             the file is appended to).
         solver, rtol: linear solver and Newton tolerance of the forging solves.
+        mapper: ``mapper(out, mus, kwargs) -> [summary per mu]`` running
+            :func:`optimise_mu` for every mu (default: one after another here;
+            :func:`signorini.sweep.optimise_mus_parallel` passes Dask tasks).
+        extra_summary: entries added to the collected summary.
 
     Returns:
         The collected summary (also ``out/summary.json``): ``runs`` (one per mu:
@@ -256,9 +261,12 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
         raise InputError(f"mus must be non-negative finite numbers, got {mus}")
     out = prepare_output(out)
     base_problem(tuple(mesh))  # bad mesh input fails here, before any optimisation
-    runs = [optimise_mu(out, mu, mesh=tuple(mesh), steps=steps, method=method, gtol=gtol,
-                        maxiter=maxiter, gradient=gradient, resume=resume, solver=solver, rtol=rtol,
-                        phi_min=phi_min) for mu in mus]
+    kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
+                  gradient=gradient, resume=resume, solver=solver, rtol=rtol, phi_min=phi_min)
+    if mapper is None:
+        runs = [optimise_mu(out, mu, **kwargs) for mu in mus]
+    else:
+        runs = mapper(out, mus, kwargs)
     _plot_shapes(out / "shapes.png", runs)
     summary = {
         "status": "converged" if all(r["status"] == "converged" for r in runs) else
@@ -269,6 +277,7 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
         "runs": [{k: v for k, v in r.items() if k != "iterations_log"} for r in runs],
         "time_wall_s": time.perf_counter() - t0,
         "warnings": sorted({w for r in runs for w in r.get("warnings", [])}),
+        **(extra_summary or {}),
     }
     io.write_json(out / "summary.json", summary)
     return summary
