@@ -172,9 +172,12 @@ def test_newton_failure_at_a_trial_point_is_survived():
 
     obj = opt.Objective(pb, ["g"], response, options=TIGHT)
     _survives(obj, [-0.05], g_s, "failed")
-    # the same point again: the recorded penalty, no new solve
+    # the same point again (BFGS's trial point, 0.03 to round-off): the recorded
+    # penalty, no new solve
+    failed = next(r for r in obj.records if not r.ok)
+    assert abs(failed.x[0] - 0.03) < 1e-12
     n = obj.n_solves
-    assert obj.fun([0.03]) == next(r.F for r in obj.records if not r.ok) and obj.n_solves == n
+    assert obj.fun(failed.x) == failed.F and obj.n_solves == n
 
 
 def test_invalid_design_at_a_trial_point_is_survived():

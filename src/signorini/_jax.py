@@ -4,6 +4,11 @@ signorini needs float64 everywhere: Newton is driven to relative residuals of
 1e-12 and DDM sensitivities are compared with central finite differences at
 steps of 1e-6, neither of which survives float32. Importing this module (which
 ``signorini/__init__.py`` does first) switches JAX to 64-bit mode and the CPU.
+
+Compiled kernels are kept in JAX's persistent compilation cache, so a second
+run of the same problem size skips XLA compilation: in ``$SIGNORINI_CACHE_DIR``
+if set (an empty value switches the cache off), else
+``$XDG_CACHE_HOME/signorini/jax`` (default ``~/.cache/signorini/jax``).
 """
 
 from __future__ import annotations
@@ -15,6 +20,31 @@ os.environ.setdefault("JAX_PLATFORMS", "cpu")
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
+
+
+def cache_dir() -> str | None:
+    """Directory of the persistent compilation cache (None: switched off)."""
+    d = os.environ.get("SIGNORINI_CACHE_DIR")
+    if d is not None:
+        return d or None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "signorini", "jax")
+
+
+def _enable_cache() -> None:
+    d = cache_dir()
+    if d is None:
+        return
+    try:
+        os.makedirs(d, exist_ok=True)
+    except OSError:  # read-only home: run without the cache
+        return
+    jax.config.update("jax_compilation_cache_dir", d)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+_enable_cache()
 
 import jax.numpy as jnp  # noqa: E402
 

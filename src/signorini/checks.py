@@ -9,6 +9,8 @@ and kept in ``Solution.warnings`` (the command-line runs copy them into
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import logging
 import warnings
 
@@ -17,6 +19,7 @@ import numpy as np
 from ._jax import jax, jnp
 from .errors import InputError, SignoriniWarning
 from .obstacles import Circle
+from .solution import closed
 
 log = logging.getLogger("signorini")
 
@@ -32,12 +35,28 @@ MAX_NEW_CONTACT_NODES = 1
 COARSE_PATH_FROM = 1.0 / 3.0
 
 
+_SILENT = contextvars.ContextVar("signorini_checks_silent", default=False)
+
+
+@contextlib.contextmanager
+def silenced():
+    """Keep warnings in ``solution.warnings`` only, without logging or raising them
+    (the auxiliary coarse solves of :mod:`signorini.multilevel`)."""
+    token = _SILENT.set(True)
+    try:
+        yield
+    finally:
+        _SILENT.reset(token)
+
+
 def warn(solution, message: str) -> None:
     """Log ``message``, raise it as a :class:`SignoriniWarning` and keep it in
     ``solution.warnings`` (once)."""
     if message in solution.warnings:
         return
     solution.warnings.append(message)
+    if _SILENT.get():
+        return
     label = getattr(solution, "label", None)
     log.warning("warning%s: %s", f" [{label}]" if label else "", message)
     warnings.warn(message, SignoriniWarning, stacklevel=3)
@@ -113,7 +132,7 @@ class IncrementChecks:
         snap = []
         for i, s in enumerate(m.surfaces):
             f = m._fields(jnp.asarray(w), self.params, t, i)
-            snap.append((X[s.nodes] + u[s.nodes], np.asarray(f["p_N"]) > 0))
+            snap.append((X[s.nodes] + u[s.nodes], closed(f["p_N"])))
         return t, snap
 
     def start(self, w) -> None:

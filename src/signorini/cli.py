@@ -155,8 +155,9 @@ def _dask_options(p):
 
 
 def _solver_options(p):
-    p.add_argument("--solver", default="superlu", choices=["superlu", "pardiso", "umfpack"],
-                   help="sparse direct solver (pardiso needs pypardiso, umfpack scikit-umfpack)")
+    p.add_argument("--solver", default="auto", choices=["auto", "pardiso", "superlu", "umfpack"],
+                   help="sparse direct solver; auto (default) = the fastest installed: pardiso "
+                        "(MKL, installed with signorini on x86-64), else superlu (SciPy)")
     p.add_argument("--force-size", action="store_true",
                    help="run even if the estimated memory exceeds what is available")
     v = p.add_mutually_exclusive_group()

@@ -1,13 +1,33 @@
 """Direct linear solvers behind one small interface.
 
-``factorize(K)`` returns an object with ``solve(b)`` (b of shape (n,) or
-(n, k)); the same factorisation serves Newton and all DDM right-hand sides.
-Matrices may be unsymmetric (friction). SciPy's SuperLU is the embedded
-default; UMFPACK (``scikit-umfpack``) and PARDISO (``pypardiso``) are used
-when installed and asked for.
+``get_solver(name).factorize(K, symmetric=...)`` returns a factor with
+``solve(b)`` (b of shape (n,) or (n, k)); the same factorisation serves Newton
+and all DDM right-hand sides. Every solve is checked against K (one sparse
+product) and refined by a few back-substitutions if its relative residual is
+above ``REFINE_TOL``, so a solver's pivot perturbation never reaches Newton or
+the sensitivities.
+
+Backends (``solver=`` of :func:`signorini.solve`, ``--solver`` of the CLI):
+
+* ``pardiso`` -- Intel MKL PARDISO (the library comes with ``pypardiso``, a
+  dependency on x86-64). Our own driver: the fill-reducing ordering and
+  symbolic factorisation (phase 11) are done once per sparsity pattern and kept;
+  each Newton iteration does only the numeric factorisation (phase 22).
+  Symmetric tangents (frictionless contact, hyperelastic bodies) use the
+  symmetric indefinite factorisation (upper triangle, Bunch-Kaufman pivoting),
+  unsymmetric ones (friction, plasticity) the general LU.
+* ``superlu`` -- SciPy's SuperLU, present everywhere: the fallback. SciPy does
+  not expose a reusable symbolic factorisation; symmetric tangents use the
+  symmetric-mode ordering of A + A^T.
+* ``umfpack`` -- through ``scikit-umfpack``, if installed.
+* ``auto`` (the default) -- the fastest one installed: pardiso, else superlu.
 """
 
 from __future__ import annotations
+
+import contextlib
+import ctypes
+import logging
 
 import numpy as np
 import scipy.sparse as sp
@@ -15,36 +35,109 @@ import scipy.sparse.linalg as spla
 
 from .errors import InputError, SingularTangentError
 
+log = logging.getLogger("signorini")
 
-class _Factor:
-    def __init__(self, solve, n):
+#: normwise backward error ||K x - b|| / (||K|| ||x|| + ||b||) (max norms) above
+#: which a solve is refined; round-off of a stable factorisation is ~1e-16
+REFINE_TOL = 1e-14
+#: at most this many refinement steps (each one back-substitution)
+REFINE_STEPS = 3
+
+
+class Factor:
+    """A factorisation of K: ``solve(b)`` with a backward-error check and refinement."""
+
+    def __init__(self, solve, K: sp.spmatrix, refactor=None):
         self._solve = solve
-        self.n = n
+        self._refactor = refactor  # () -> a more accurate solve function, if the solver has one
+        self.K = K
+        self.n = K.shape[0]
+        self._norm = None
+        self.refinements = 0  # refinement back-substitutions done so far
+        self.backward_error = 0.0  # of the last solve (worst column)
+
+    def _backward_error(self, r, x, b) -> float:
+        if self._norm is None:
+            self._norm = float(abs(self.K).sum(axis=1).max())
+        amax = lambda a: np.max(np.abs(a), axis=0)  # noqa: E731
+        den = self._norm * amax(x) + amax(b)
+        return float(np.max(np.where(den > 0, amax(r) / np.where(den > 0, den, 1.0), 0.0)))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=float)
+        x = self._solve_refined(b)
+        if self.backward_error > REFINE_TOL and self._refactor is not None:
+            self._solve, self._refactor = self._refactor(), None
+            x = self._solve_refined(b)
+        return x
+
+    def _solve_refined(self, b: np.ndarray) -> np.ndarray:
         x = self._solve(b)
         if not np.all(np.isfinite(x)):
             raise SingularTangentError("the linear solve returned non-finite values (singular tangent)")
+        r = b - self.K @ x
+        eta = self._backward_error(r, x, b)
+        for _ in range(REFINE_STEPS):
+            if eta <= REFINE_TOL:
+                break
+            x_new = x + self._solve(r)
+            self.refinements += 1
+            r_new = b - self.K @ x_new
+            eta_new = self._backward_error(r_new, x_new, b)
+            if eta_new < eta:
+                x, r = x_new, r_new
+            stalled = not eta_new < 0.5 * eta
+            eta = min(eta, eta_new)
+            if stalled:
+                break
+        self.backward_error = eta
+        self.relative_residual = float(np.max(np.linalg.norm(r, axis=0) /
+                                              np.maximum(np.linalg.norm(b, axis=0), 1e-300)))
         return x
 
+    def refined_for(self, K: sp.spmatrix) -> "Factor":
+        """This factorisation used for a nearby matrix K: solves of K by iterative
+        refinement (this factor as the preconditioner), checked by K's backward error."""
+        return Factor(self._solve, K)
 
-class SuperLU:
-    """SciPy's SuperLU with COLAMD ordering (the default)."""
+
+class LinearSolver:
+    """Base class: ``factorize(K, symmetric=False) -> Factor``."""
+
+    name = "?"
+    symbolic_reuse = False  # does the solver keep the symbolic analysis of a pattern?
+
+    def factorize(self, K: sp.spmatrix, symmetric: bool = False) -> Factor:
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        return self.name
+
+
+class SuperLU(LinearSolver):
+    """SciPy's SuperLU (the fallback present everywhere).
+
+    Unsymmetric tangents: COLAMD ordering and partial pivoting; symmetric ones:
+    minimum degree on A + A^T with diagonal pivoting preferred (SuperLU's
+    symmetric mode), measured faster on our saddle-point tangents.
+    """
 
     name = "superlu"
 
-    def __init__(self, permc_spec: str = "COLAMD"):
-        self.permc_spec = permc_spec
-
-    def factorize(self, K: sp.spmatrix) -> _Factor:
+    def factorize(self, K, symmetric=False):
+        A = K.tocsc()
         try:
-            lu = spla.splu(K.tocsc(), permc_spec=self.permc_spec)
+            if symmetric:
+                lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
+                               options={"SymmetricMode": True})
+            else:
+                lu = spla.splu(A, permc_spec="COLAMD")
         except RuntimeError as e:  # "Factor is exactly singular"
             raise SingularTangentError(f"SuperLU could not factorise the tangent: {e}") from None
-        return _Factor(lu.solve, K.shape[0])
+        return Factor(lu.solve, K)
 
 
-class Umfpack:
+class Umfpack(LinearSolver):
     """UMFPACK through scikit-umfpack (optional)."""
 
     name = "umfpack"
@@ -53,78 +146,306 @@ class Umfpack:
         try:
             import scikits.umfpack  # noqa: F401
         except (ImportError, OSError) as e:
-            raise InputError(f"solver 'umfpack' needs `pip install scikit-umfpack` (import failed: {e})") from None
+            raise InputError(f"solver 'umfpack' is not installed: `pip install scikit-umfpack` "
+                             f"(import failed: {e})") from None
 
-    def factorize(self, K):
+    def factorize(self, K, symmetric=False):
         import scikits.umfpack as um
 
         try:
             lu = um.splu(K.tocsc())
         except Exception as e:  # noqa: BLE001 - umfpack raises generic errors
             raise SingularTangentError(f"UMFPACK could not factorise the tangent: {e}") from None
-        return _Factor(lambda b: np.column_stack([lu.solve(c) for c in b.T]) if b.ndim == 2
-                       else lu.solve(b), K.shape[0])
+        return Factor(lambda b: np.column_stack([lu.solve(c) for c in b.T]) if b.ndim == 2
+                      else lu.solve(b), K)
 
 
-class Pardiso:
-    """Intel MKL PARDISO through pypardiso (optional).
+def _load_mkl():
+    """The ``pardiso`` entry point of MKL's runtime library, found through pypardiso."""
+    try:
+        import pypardiso
+        lib = pypardiso.PyPardisoSolver().libmkl
+    except (ImportError, OSError) as e:  # OSError: MKL's shared library not found
+        raise InputError(f"solver 'pardiso' is not installed: `python3 -m pip install pypardiso` "
+                         f"(x86-64 only; it brings Intel MKL) (import failed: {e})") from None
+    f = lib.pardiso
+    i32 = ctypes.POINTER(ctypes.c_int32)
+    vp = ctypes.c_void_p
+    f.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32, i32, i32, i32, vp, vp, vp, vp, i32,
+                  i32, i32, vp, vp, i32]
+    f.restype = None
+    f.lib = lib
+    return f
 
-    One MKL solver handle per ``Pardiso`` object: each ``factorize`` releases the
-    previous factorisation's memory first (a new handle per call leaked the MKL
-    workspace: 24 GB after one 225k-DOF solve). A factor is therefore valid until
-    the next ``factorize`` of the same object, which is how Newton and the DDM
-    use it.
+
+_MKL = None
+
+#: PARDISO error codes (MKL reference)
+_PARDISO_ERRORS = {-1: "input inconsistent", -2: "not enough memory", -3: "reordering problem",
+                   -4: "zero pivot, numerical factorization or iterative refinement problem",
+                   -5: "unclassified (internal) error", -6: "reordering failed",
+                   -7: "diagonal matrix is singular", -8: "32-bit integer overflow problem",
+                   -9: "not enough memory for out-of-core solver",
+                   -10: "error opening out-of-core files", -11: "read/write error with OOC files",
+                   -12: "pardiso_64 called from 32-bit library",
+                   -13: "interrupted by the mkl_progress function",
+                   -15: "reordering failed (matrix types 11 and 13 only)"}
+
+
+def _mkl():
+    global _MKL
+    if _MKL is None:
+        _MKL = _load_mkl()
+    return _MKL
+
+
+@contextlib.contextmanager
+def mkl_threads(n: int):
+    """Run PARDISO with ``n`` OpenMP threads for the duration (no-op without MKL).
+
+    MKL's results are bitwise reproducible only for a fixed thread count; the
+    sweep runs every point with one thread, in worker processes and in the
+    sequential mode alike, so both give the same bits."""
+    try:
+        lib = _mkl().lib
+    except InputError:
+        yield
+        return
+    old = int(lib.MKL_Get_Max_Threads())
+    lib.MKL_Set_Num_Threads(ctypes.c_int(int(n)))
+    try:
+        yield
+    finally:
+        lib.MKL_Set_Num_Threads(ctypes.c_int(old))
+
+
+class Pardiso(LinearSolver):
+    """Intel MKL PARDISO with symbolic reuse (our own ctypes driver of MKL).
+
+    One PARDISO handle per object. ``factorize`` runs the analysis (ordering +
+    symbolic factorisation, phase 11) only when the sparsity pattern or the
+    matrix type changes, then the numeric factorisation (phase 22); a factor is
+    valid until the next ``factorize`` of the same object, which is how Newton
+    and the DDM use it. ``analyses`` and ``factorizations`` count the phases.
     """
 
     name = "pardiso"
+    symbolic_reuse = True
 
     def __init__(self):
-        try:
-            import pypardiso
-        except (ImportError, OSError) as e:  # OSError: MKL's shared library not found
-            raise InputError(f"solver 'pardiso' needs `pip install pypardiso` (import failed: {e})") from None
-        self._solver = pypardiso.PyPardisoSolver()  # mtype 11: real unsymmetric
+        self._f = _mkl()
+        self._pt = np.zeros(64, dtype=np.int64)
+        self._iparm = np.zeros(64, dtype=np.int32)
+        self._mtype = 0
+        self._key = None  # (mtype, n, indptr, indices) of the analysed pattern
+        self._a = None  # values of the current factorisation (kept alive)
+        self._upper = None  # (mask, indptr, indices) of the upper triangle, symmetric case
+        self.analyses = 0  # symbolic analyses (phase 11), including re-analyses
+        self.reanalyses = 0  # analyses redone because refinement could not repair a kept one
+        self.factorizations = 0
         self._generation = 0
 
-    def factorize(self, K):
-        solver = self._solver
-        if self._generation:
-            solver.free_memory(everything=False)
+    # ---------------------------------------------------------------- low level
+    def _call(self, phase: int, a=None, b=None) -> np.ndarray | None:
+        n = self._key[1] if self._key else 0
+        ia, ja = (self._key[2], self._key[3]) if self._key else (None, None)
+        nrhs = 1 if b is None or b.ndim == 1 else b.shape[1]
+        x = None if b is None else np.zeros_like(b)
+        err = ctypes.c_int32(0)
+        c = ctypes.c_int32
+        ptr = lambda arr: None if arr is None else arr.ctypes.data  # noqa: E731
+        self._f(self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(c(1)),
+                ctypes.byref(c(1)), ctypes.byref(c(self._mtype)), ctypes.byref(c(phase)),
+                ctypes.byref(c(n)), ptr(a), ptr(ia), ptr(ja), None, ctypes.byref(c(nrhs)),
+                self._iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), ctypes.byref(c(0)),
+                ptr(b), ptr(x), ctypes.byref(err))
+        if err.value != 0:
+            msg = _PARDISO_ERRORS.get(err.value, "unknown error")
+            raise SingularTangentError(f"PARDISO phase {phase} failed: error {err.value} ({msg})")
+        return x
+
+    def _release(self):
+        if self._key is not None:
+            try:
+                self._call(-1)
+            finally:
+                self._key = None
+                self._a = None
+
+    def _analyse(self, mtype: int, n: int, indptr: np.ndarray, indices: np.ndarray, a):
+        self._release()
+        self._pt[:] = 0
+        ip = self._iparm
+        ip[:] = 0
+        ip[0] = 1  # we supply the parameters
+        ip[1] = 2  # METIS nested dissection
+        ip[7] = 0  # iterative refinement: MKL's default (2 steps when pivots were perturbed)
+        ip[9] = 13 if mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
+        ip[10] = 1  # scaling
+        ip[12] = 1  # weighted matching (needed for the zero diagonal of active multipliers)
+        ip[17] = -1  # report the factor's non-zeros
+        ip[20] = 1  # Bunch-Kaufman pivoting (symmetric indefinite)
+        ip[34] = 1  # zero-based indices
+        self._mtype = mtype
+        self._key = (mtype, n, np.ascontiguousarray(indptr, dtype=np.int32),
+                     np.ascontiguousarray(indices, dtype=np.int32))
+        self._call(11, a)
+        self.analyses += 1
+
+    def _same_pattern(self, mtype, n, indptr, indices) -> bool:
+        k = self._key
+        if k is None or k[0] != mtype or k[1] != n:
+            return False
+        return (k[2] is indptr or np.array_equal(k[2], indptr)) and \
+            (k[3] is indices or np.array_equal(k[3], indices))
+
+    # --------------------------------------------------------------- interface
+    def factorize(self, K, symmetric=False):
         A = K.tocsr()
-        A.sort_indices()
-        try:
-            solver.factorize(A)
-        except Exception as e:  # noqa: BLE001
-            raise SingularTangentError(f"PARDISO could not factorise the tangent: {e}") from None
+        if not A.has_sorted_indices:
+            A = A.sorted_indices()
+        n = A.shape[0]
+        if symmetric:
+            up = self._upper
+            if up is None or up[0] is not A.indices and not (
+                    up[0].shape == A.indices.shape and np.array_equal(up[0], A.indices)
+                    and np.array_equal(up[1], A.indptr)):
+                rows = np.repeat(np.arange(n), np.diff(A.indptr))
+                mask = A.indices >= rows
+                indptr = np.concatenate([[0], np.cumsum(np.bincount(rows[mask], minlength=n))])
+                up = (A.indices, A.indptr, mask, indptr.astype(np.int32),
+                      A.indices[mask].astype(np.int32))
+                self._upper = up
+            a = np.ascontiguousarray(A.data[up[2]])
+            indptr, indices, mtype = up[3], up[4], -2
+        else:
+            a = np.ascontiguousarray(A.data)
+            indptr, indices, mtype = A.indptr, A.indices, 11
+        if np.any(np.diff(indptr) == 0):
+            raise SingularTangentError("the tangent has an empty row (singular)")
+        fresh = not self._same_pattern(mtype, n, indptr, indices)
+        if fresh:
+            self._analyse(mtype, n, indptr, indices, a)
+        self._a = a
+        self._call(22, a)
+        self.factorizations += 1
         self._generation += 1
-        generation = self._generation
 
-        def solve(b):
-            if generation != self._generation:
-                raise InputError("this PARDISO factorisation was replaced by a newer one")
-            return solver.solve(A, np.asarray(b))
+        def solver_of(generation):
+            def solve(b):
+                if generation != self._generation:
+                    raise InputError("this PARDISO factorisation was replaced by a newer one")
+                return np.ascontiguousarray(self._call(33, a, np.asfortranarray(b)))
+            return solve
 
-        return _Factor(solve, K.shape[0])
+        def refactor():
+            # The kept analysis carries the scaling and matching of older values; pivots
+            # it no longer suits are perturbed, which refinement normally repairs. When it
+            # does not, analyse these values afresh (measured: rare; docs/theory.md §10).
+            self._analyse(mtype, n, indptr, indices, a)
+            self._a = a
+            self._call(22, a)
+            self.reanalyses += 1
+            self._generation += 1
+            return solver_of(self._generation)
+
+        return Factor(solver_of(self._generation), A, None if fresh else refactor)
+
+    def describe(self) -> str:
+        return "pardiso (Intel MKL PARDISO)"
 
     def __del__(self):
         try:
-            if self._generation:
-                self._solver.free_memory(everything=True)
+            self._release()
         except Exception:  # noqa: BLE001 - interpreter shutdown
             pass
 
 
 SOLVERS = {"superlu": SuperLU, "umfpack": Umfpack, "pardiso": Pardiso}
 
+#: the order in which ``auto`` tries the backends (fastest first)
+AUTO_ORDER = ("pardiso", "superlu")
 
-def get_solver(name_or_solver="superlu"):
-    """A solver instance from its name (``superlu``, ``umfpack``, ``pardiso``)."""
+
+class _Foreign(LinearSolver):
+    """A user object with ``factorize(K)``: the symmetry flag is not passed on."""
+
+    def __init__(self, obj):
+        self._obj = obj
+        self.name = getattr(obj, "name", type(obj).__name__)
+
+    def factorize(self, K, symmetric=False):
+        f = self._obj.factorize(K)
+        return f if isinstance(f, Factor) else Factor(f.solve, K)
+
+
+def available() -> list[str]:
+    """Names of the backends that can be used on this machine."""
+    out = []
+    for name, cls in SOLVERS.items():
+        try:
+            cls()
+            out.append(name)
+        except InputError:
+            pass
+    return out
+
+
+def get_solver(name_or_solver="auto") -> LinearSolver:
+    """A solver instance from its name (``auto``, ``pardiso``, ``superlu``,
+    ``umfpack``) or a user object with a ``factorize(K)`` method.
+
+    ``auto`` picks the fastest backend installed (PARDISO, else SuperLU); a named
+    backend that is not installed raises :class:`InputError` saying how to install it.
+    """
+    if isinstance(name_or_solver, LinearSolver):
+        return name_or_solver
     if not isinstance(name_or_solver, str):
         if not callable(getattr(name_or_solver, "factorize", None)):
-            raise InputError(f"solver must be one of {sorted(SOLVERS)} or an object with a "
+            raise InputError(f"solver must be 'auto', one of {sorted(SOLVERS)} or an object with a "
                              f"factorize(K) method, got {name_or_solver!r}")
-        return name_or_solver
+        return _Foreign(name_or_solver)
+    if name_or_solver == "auto":
+        for name in AUTO_ORDER:
+            try:
+                return SOLVERS[name]()
+            except InputError as e:
+                log.debug("auto solver: %s unavailable (%s)", name, e)
+        raise AssertionError("SuperLU is always available")
     try:
-        return SOLVERS[name_or_solver]()
+        cls = SOLVERS[name_or_solver]
     except KeyError:
-        raise InputError(f"unknown linear solver {name_or_solver!r}; choose from {sorted(SOLVERS)}") from None
+        raise InputError(f"unknown linear solver {name_or_solver!r}; choose from "
+                         f"{['auto'] + sorted(SOLVERS)}") from None
+    return cls()
+
+
+#: ||K - K^T||_max / ||K||_max below which a tangent is taken as symmetric
+SYMMETRY_TOL = 1e-12
+
+
+def is_symmetric(K: sp.spmatrix, tol: float = SYMMETRY_TOL) -> bool:
+    """True if K equals its transpose to ``tol`` relative (max norm)."""
+    scale = abs(K).max()
+    return scale == 0 or abs(K - K.T).max() <= tol * scale
+
+
+class TangentSolver:
+    """The solver of one load path: picks the symmetric factorisation once.
+
+    A model without history (no friction, no plasticity) has a symmetric exact
+    tangent (the Hessian of its augmented Lagrangian); this is verified on the
+    first tangent factorised, and that choice is kept for the whole path.
+    """
+
+    def __init__(self, solver: LinearSolver, symmetric_candidate: bool):
+        self.solver = solver
+        self._candidate = symmetric_candidate
+        self.symmetric: bool | None = None
+
+    def factorize(self, K: sp.spmatrix) -> Factor:
+        if self.symmetric is None:
+            self.symmetric = bool(self._candidate and is_symmetric(K))
+            log.debug("tangent factorised as %s by %s",
+                      "symmetric" if self.symmetric else "unsymmetric", self.solver.describe())
+        return self.solver.factorize(K, symmetric=self.symmetric)

@@ -69,10 +69,17 @@ class Model:
         self._X0 = jnp.asarray(p.mesh.nodes)
         self._X0N = [nodal_normals(self._X0_np, s.edges, s.nodes) for s in layout.surfaces]
 
+        # linear elastic body (small strain, standard element): its stiffness does not
+        # depend on w, so it is computed once per parameter set and reused by every
+        # Newton iteration, which then costs the contact kernels and a block product only
+        self.linear_elements = (bool(getattr(p.material, "linear", False)) and not self.n_state
+                                and isinstance(self.formulation, element.Standard))
+        self._ke = None  # (parameter values, Ke as JAX array, Ke as NumPy array)
         self.pattern = SparsityPattern(layout.block_dofs(), layout.n_dof, layout.free)
         self.fext = jax.jit(self.external_forces)
         self.cache: dict = {}
         self._local = jax.jit(self._local_impl)
+        self._stiffness = jax.jit(lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1])
         self._residual = jax.jit(self.residual)
         self._cases = jax.jit(self.cases)
         self._status = jax.jit(self.contact_status, static_argnums=4)
@@ -344,9 +351,13 @@ class Model:
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
 
-    def _local_impl(self, w, params, t, state_n=None, cases=None):
-        """Residual and the Jacobian blocks of every element and contact node."""
-        re, Ke, _ = self._elements(w, params, state_n, tangent=True)
+    def _local_impl(self, w, params, t, state_n=None, cases=None, Ke=None):
+        """Residual and the Jacobian blocks of every element and contact node
+        (``Ke``: the constant element stiffness of a linear body, if known)."""
+        if Ke is None:
+            re, Ke, _ = self._elements(w, params, state_n, tangent=True)
+        else:
+            re = jnp.einsum("eij,ej->ei", Ke, w[self.edofs])
         R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
         R = R - self.external_forces(self.reference(params), params, t)
         blocks = [Ke]
@@ -370,8 +381,21 @@ class Model:
     def local_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
         cases = self._cases(w, params, t, state_n) if self.has_contact_history else None
-        R, blocks = self._local(w, params, t, state_n, cases)
-        return np.asarray(R), [np.asarray(b) for b in blocks]
+        if not self.linear_elements:
+            R, blocks = self._local(w, params, t, state_n, cases)
+            return np.asarray(R), [np.asarray(b) for b in blocks]
+        Ke, Ke_np = self.element_stiffness(params)
+        R, blocks = self._local(w, params, t, state_n, cases, Ke)
+        return np.asarray(R), [Ke_np] + [np.asarray(b) for b in blocks[1:]]
+
+    def element_stiffness(self, params):
+        """(Ke JAX, Ke NumPy) (n_cells, 8, 8) of a linear body, computed once per
+        parameter values (E, nu, shape parameters may differ between solves)."""
+        key = tuple(sorted((k, float(v)) for k, v in params.items()))
+        if self._ke is None or self._ke[0] != key:
+            Ke = self._stiffness(params)
+            self._ke = (key, Ke, np.asarray(Ke))
+        return self._ke[1], self._ke[2]
 
     def convergence_weights(self, params) -> np.ndarray:
         """(n_dof,) row weights giving every residual row force units."""

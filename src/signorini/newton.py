@@ -38,6 +38,11 @@ class NewtonOptions:
         line_search: halve a Newton correction until the residual norm falls
             (helps when stick/slip or contact states cycle; off by default:
             Newton's own path is then exactly the textbook one).
+        predictor: first iterate of an increment after the first:
+            ``"extrapolate"`` (default) continues the last two converged
+            increments linearly (free DOFs, multipliers included), ``"none"``
+            starts from the last converged state. Only the start changes, not
+            the converged point (docs/theory.md §10).
     """
 
     rtol: float = 1e-10
@@ -49,6 +54,7 @@ class NewtonOptions:
     divergence: float = 1e12
     singular_check: float = 1e-6
     line_search: bool = False
+    predictor: str = "extrapolate"
 
     def __post_init__(self):
         if not (self.rtol > 0 or self.atol > 0):
@@ -64,6 +70,9 @@ class NewtonOptions:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v == v and abs(v) != float("inf")):
                 raise InputError(f"NewtonOptions: {name} must be a finite number, got {v!r}")
+        if self.predictor not in ("extrapolate", "none"):
+            raise InputError(f"NewtonOptions: predictor must be 'extrapolate' or 'none', got "
+                             f"{self.predictor!r}")
         if not 0 < self.min_step < 1:
             raise InputError(f"NewtonOptions: min_step must lie in (0, 1), got {self.min_step}")
 
@@ -135,8 +144,10 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
     """Iterate to convergence from ``w`` (modified in place on the free DOFs).
 
     Returns:
-        (w, R, blocks): converged unknowns, residual and block Jacobians at w
-        (so the caller can factorise the exact converged tangent for DDM).
+        (w, R, blocks, factor): converged unknowns, residual and block Jacobians
+        at w (so the caller can factorise the exact converged tangent for DDM),
+        and the factorisation of the last iteration's tangent (None if no
+        iteration was needed).
 
     Raises:
         StepFailure: no convergence, divergence, non-finite residual or singular tangent.
@@ -145,6 +156,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
     ref = None
     dw = None
     norm_prev = np.inf
+    fac = None
     for k in range(options.max_iter + 1):
         t0 = time.perf_counter()
         R, blocks = model.local_tangents(w, params, t, state_n)
@@ -175,7 +187,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         log.debug("  t=%.6g it %d |R|=%.3e", t, k, norm)
         if norm <= max(options.rtol * ref, options.atol):
             steplog.converged = True
-            return w, R, blocks
+            return w, R, blocks, fac
         if _stagnated(steplog.residuals, ref):
             floor = norm / ref
             raise StepFailure(
@@ -200,7 +212,9 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
             dw = fac.solve(-Rf)
         except SingularTangentError as e:
             raise StepFailure(str(e), fatal=(k == 0)) from None
-        lin = np.linalg.norm(K @ dw + Rf) / max(np.linalg.norm(Rf), 1e-300)
+        lin = getattr(fac, "relative_residual", None)
+        if lin is None:
+            lin = np.linalg.norm(K @ dw + Rf) / max(np.linalg.norm(Rf), 1e-300)
         steplog.time_solve += time.perf_counter() - t0
         if lin > options.singular_check:
             raise StepFailure(f"singular tangent (linear residual {lin:.1e})", fatal=(k == 0))

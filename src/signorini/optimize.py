@@ -198,7 +198,7 @@ class Objective:
     """
 
     def __init__(self, problem, names: Sequence[str], response: Callable, *, steps: int = 1,
-                 options: NewtonOptions | None = None, solver="superlu", response_key=None,
+                 options: NewtonOptions | None = None, solver="auto", response_key=None,
                  increment: int = -1, gradient_mode: str = "ddm", fd_step: float = 1e-6,
                  failure: str = "penalty", failure_value: float | None = None,
                  validate: Callable | None = None, factory: bool | None = None,

@@ -103,7 +103,8 @@ name of a parameter of ``[params]``, which makes it a design variable):
 ``[solve]``
     ``steps`` (int >= 1, default 1), ``sensitivities`` (list of parameter
     names), and the Newton options ``rtol``, ``atol``, ``max_iter``,
-    ``max_cuts`` (defaults of :class:`~signorini.newton.NewtonOptions`).
+    ``max_cuts``, ``predictor`` (``"extrapolate"`` | ``"none"``) (defaults of
+    :class:`~signorini.newton.NewtonOptions`).
 ``[[response]]``
     ``name`` (unique), ``type``: ``"max_pressure"`` (largest p_N of a surface,
     with its DDM sensitivity at that node) or ``"normal_force"`` (sum of p_N
@@ -144,6 +145,7 @@ import numpy as np
 
 from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty
 from .errors import InputError, SolverError, UnknownParameterError
+from .solution import closed
 from .loads import Fixed, Pressure, Traction
 from .materials import LinearElastic, NeoHooke
 from .mesh import Mesh, rectangle
@@ -552,7 +554,8 @@ def _load(rd: _Reader, k: int, data, mesh: Mesh):
 
 
 def _solve(rd: _Reader, data):
-    t = _Table(rd, "[solve]", data, {"steps", "sensitivities", "rtol", "atol", "max_iter", "max_cuts"})
+    t = _Table(rd, "[solve]", data, {"steps", "sensitivities", "rtol", "atol", "max_iter", "max_cuts",
+                                     "predictor"})
     steps = t.integer("steps", 1, minimum=1)
     sens = t._get("sensitivities", [])
     if not isinstance(sens, list) or not all(isinstance(s, str) for s in sens):
@@ -569,8 +572,9 @@ def _solve(rd: _Reader, data):
     opts = NewtonOptions(rtol=t.real("rtol", d.rtol, nonnegative=True),
                          atol=t.real("atol", d.atol, nonnegative=True),
                          max_iter=t.integer("max_iter", d.max_iter, minimum=1),
-                         max_cuts=t.integer("max_cuts", d.max_cuts, minimum=0)) \
-        if any(t.has(k) for k in ("rtol", "atol", "max_iter", "max_cuts")) else d
+                         max_cuts=t.integer("max_cuts", d.max_cuts, minimum=0),
+                         predictor=t.string("predictor", d.predictor, choices=("extrapolate", "none"))) \
+        if any(t.has(k) for k in ("rtol", "atol", "max_iter", "max_cuts", "predictor")) else d
     if not (opts.rtol > 0 or opts.atol > 0):
         raise t.err("rtol", "rtol or atol must be positive")
     return steps, tuple(sens), opts
@@ -757,7 +761,7 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
         else:
             c = sol.contact(-1, k)
         surfaces.append({"edges": s.contact.edges, "method": type(s.contact.method).__name__,
-                         "nodes": int(len(s.nodes)), "closed_nodes": int(np.sum(c["p_N"] > 0)),
+                         "nodes": int(len(s.nodes)), "closed_nodes": int(np.sum(closed(c["p_N"]))),
                          "max_p_N": float(np.max(c["p_N"])) + 0.0 if len(c["p_N"]) else 0.0})
     summary["contact"] = surfaces
     summary["responses"] = {r.name: {"type": r.type, **_response_values(sol, problem, r)}
@@ -771,7 +775,7 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
         files.extend(f"{cfg.stem}_{i + 1:04d}.vtu" for i in range(len(sol.increments)))
 
 
-def run(path, out, *, solver="superlu", progress=None, force_size: bool = False) -> dict:
+def run(path, out, *, solver="auto", progress=None, force_size: bool = False) -> dict:
     """Load a problem file, solve it with DDM sensitivities and write the results.
 
     Args:
@@ -807,8 +811,13 @@ def run(path, out, *, solver="superlu", progress=None, force_size: bool = False)
         "mesh": {"nodes": problem.mesh.n_nodes, "cells": problem.mesh.n_cells},
         "steps": cfg.steps, "sensitivities": list(cfg.sensitivities),
         "options": {"rtol": cfg.options.rtol, "atol": cfg.options.atol,
-                    "max_iter": cfg.options.max_iter, "max_cuts": cfg.options.max_cuts},
+                    "max_iter": cfg.options.max_iter, "max_cuts": cfg.options.max_cuts,
+                    "predictor": cfg.options.predictor},
     }
+    from .runner import use_solver
+
+    solver = use_solver(solver)
+    summary["solver"] = solver.name
     t0 = time.perf_counter()
     error = None
     try:

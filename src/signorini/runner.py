@@ -76,6 +76,16 @@ def write_partial(out: Path, solution, stem: str, reason: str, extra: dict | Non
     return summary
 
 
+def use_solver(solver="auto"):
+    """Resolve a solver name once per run (``auto``: the fastest installed) and say
+    which one it is in the log."""
+    from .linsolve import get_solver
+
+    lin = get_solver(solver)
+    log.info("linear solver: %s%s", lin.describe(), " (auto)" if solver == "auto" else "")
+    return lin
+
+
 def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
     """``signorini.solve(problem, label="base", **solve_kwargs)``; on a Newton failure
     write the converged increments (``<stem>.pvd`` series, last contact table) and a
@@ -83,6 +93,8 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
     from .errors import ConvergenceError
     from .solve import solve
 
+    solver = solve_kwargs.get("solver", "auto")
+    extra = {**extra, "solver": getattr(solver, "name", solver)}
     try:
         return solve(problem, label="base", **solve_kwargs)
     except ConvergenceError as e:

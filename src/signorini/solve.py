@@ -18,7 +18,7 @@ import numpy as np
 
 from ._jax import jnp
 from .errors import ConvergenceError, InputError, SingularTangentError
-from .linsolve import get_solver
+from .linsolve import REFINE_TOL, TangentSolver, get_solver
 from .model import Model
 from . import checks
 from .newton import NewtonOptions, StepFailure, StepLog, newton
@@ -66,7 +66,8 @@ def ddm_for(model: Model, names: Sequence[str]) -> DDM | None:
 
 
 def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
-          options: NewtonOptions = NewtonOptions(), solver="superlu", label: str | None = None) -> Solution:
+          options: NewtonOptions = NewtonOptions(), solver="auto", label: str | None = None,
+          initial=None, ddm_factorization: str = "exact") -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
 
     Args:
@@ -76,8 +77,18 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             are computed after every converged increment.
         options: :class:`~signorini.newton.NewtonOptions` (tolerances, iteration
             and step-cutting budgets).
-        solver: linear solver name (``superlu``, ``umfpack``, ``pardiso``) or object.
+        solver: linear solver: ``"auto"`` (the fastest installed: PARDISO, else
+            SuperLU), a name (``pardiso``, ``superlu``, ``umfpack``), a
+            :class:`~signorini.linsolve.LinearSolver` instance (reuses its
+            symbolic analysis across solves) or an object with ``factorize(K)``.
         label: name of this solve in log lines and progress bars (e.g. ``"FD R+"``).
+        initial: (n_dof,) first Newton iterate of the first increment (e.g. a coarse
+            solution from :func:`signorini.multilevel.prolong`, or a converged solution
+            of nearby parameters); only the start changes, not the converged result.
+        ddm_factorization: ``"exact"`` (default): the DDM factorises the converged
+            tangent; ``"reuse"``: it solves with the last Newton factorisation,
+            refined against the converged tangent to the backward error of a fresh
+            solve, and factorises afresh only if that refinement falls short.
 
     Returns:
         A :class:`~signorini.solution.Solution` with every converged increment;
@@ -91,6 +102,8 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     """
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"steps must be a positive integer (number of load increments), got {steps!r}")
+    if ddm_factorization not in ("exact", "reuse"):
+        raise InputError(f"ddm_factorization must be 'exact' or 'reuse', got {ddm_factorization!r}")
     names = _sensitivity_names(sensitivities)
     check_names(names, problem.params, "sensitivities")
     check_finite(problem.params)
@@ -104,12 +117,13 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
                              "signorini.solve (use AugmentedLagrangian for the single-Newton method)")
     params = as_jax(problem.params)
     model.check(problem.params)
-    lin = get_solver(solver)
+    lin = TangentSolver(get_solver(solver), symmetric_candidate=not model.has_history)
     ddm = ddm_for(model, names)
     weights = model.convergence_weights(params)
 
     sol = Solution(model, dict(problem.params), names)
     sol.label = label
+    sol.solver = lin.solver.name
     checks.before_solve(model, params, sol)
     inc_checks = checks.IncrementChecks(model, params, sol)
     progress = SolveProgress(label, steps)
@@ -119,6 +133,12 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     inc_checks.start(w)
 
     t, dt_nominal = 0.0, 1.0 / steps
+    w_prev, dt_prev = None, None
+    if initial is not None:
+        initial = np.asarray(initial, dtype=float)
+        if initial.shape != (model.n_dof,) or not np.all(np.isfinite(initial)):
+            raise InputError(f"initial must be a finite array of shape ({model.n_dof},) (one value "
+                             f"per unknown), got shape {initial.shape}")
     dt, cuts, total_cuts = dt_nominal, 0, 0
 
     def fail(message):
@@ -133,12 +153,17 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
         steplog = StepLog(t_new, dt)
         sol.log.append(steplog)
         w_trial = w.copy()
+        if initial is not None and not sol.increments and t == 0.0:
+            w_trial[model.free] = initial[model.free]
+        elif options.predictor == "extrapolate" and w_prev is not None:
+            # linear extrapolation of the last two converged increments (free DOFs)
+            w_trial[model.free] += (dt / dt_prev) * (w - w_prev)[model.free]
         if model.prescribed.size:
             w_trial[model.prescribed] = np.asarray(model.prescribed_values(params, t_new))
         ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t_new))[model.free]))
         try:
-            w_trial, R, blocks = newton(model, model.pattern, lin, w_trial, params, t_new,
-                                        state_n, options, weights, ref, steplog)
+            w_trial, R, blocks, last_fac = newton(model, model.pattern, lin, w_trial, params,
+                                                  t_new, state_n, options, weights, ref, steplog)
         except StepFailure as e:
             steplog.reason = e.reason
             reached = (f"{len(sol.increments)} increments converged (kept in the error's .partial); "
@@ -169,14 +194,27 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
         if ddm is not None:
             t0 = time.perf_counter()
             K = model.pattern.assemble(blocks)
-            try:
-                fac = lin.factorize(K)
-            except SingularTangentError as e:
-                raise fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
-                           f"sensitivities are undefined: {e}") from None
-            t1 = time.perf_counter()
-            w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot)
+            reused = ddm_factorization == "reuse" and last_fac is not None
+            fac = last_fac.refined_for(K) if reused else None
+            w_dot = None
+            if reused:
+                # the last Newton factor preconditions refinement against the exact K;
+                # kept only if the sensitivities reach the backward error of a fresh solve
+                t1 = time.perf_counter()
+                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot)
+                if fac.backward_error > REFINE_TOL:
+                    w_dot, reused = None, False
+            if w_dot is None:
+                try:
+                    fac = lin.factorize(K)
+                except SingularTangentError as e:
+                    raise fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
+                               f"sensitivities are undefined: {e}") from None
+                t1 = time.perf_counter()
+                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot)
             timing["factorization"] = t1 - t0
+            timing["reused_factorization"] = reused
+            timing["refinements"] = fac.refinements
             if not np.all(np.isfinite(w_dot)):
                 raise fail(f"the sensitivities at t={t_new:.6g} are not finite (NaN/inf in the "
                            "pseudo-load); a parameter expression may not be differentiable at "
@@ -187,11 +225,13 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
         sol.increments.append(inc)
         progress.increment(t_new, steplog)
         inc_checks.after(w_trial, t_new, len(sol.increments))
+        w_prev, dt_prev = w, t_new - t
         w, t = w_trial, t_new
         cuts = 0  # max_cuts counts the halvings of one increment
         if dt < dt_nominal:
             dt = min(2.0 * dt, dt_nominal)  # grow back after a successful cut increment
     inc_checks.final()
+    sol.symmetric = lin.symmetric
     sol.status = "converged"
     progress.close("converged")
     return sol

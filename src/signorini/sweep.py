@@ -162,13 +162,14 @@ def run_point(args: list[str], out: str) -> dict:
     """
     _single_threaded_env()
     from . import cli
+    from .linsolve import mkl_threads
 
     summary_path = Path(out) / "summary.json"
     if summary_path.is_file():  # a stale summary from an earlier sweep is not this run's
         summary_path.unlink()
     err, std = _io.StringIO(), _io.StringIO()
     t0 = time.perf_counter()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std):
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std), mkl_threads(1):
         try:
             code = cli.main(list(args))
         except SystemExit as e:  # argparse usage errors
@@ -380,7 +381,7 @@ def _optimise_one(out: str, mu: float, kwargs: dict) -> dict:
 
 def optimise_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int = 50,
                           method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50,
-                          gradient: str = "ddm", resume: bool = False, solver="superlu",
+                          gradient: str = "ddm", resume: bool = False, solver="auto",
                           rtol: float = 1e-11, phi_min=None, scheduler=None, n_workers=None,
                           sequential: bool = False, client=None) -> dict:
     """:func:`signorini.problems.forging_opt.run` with one Dask task per mu.

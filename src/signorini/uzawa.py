@@ -71,7 +71,7 @@ def _check(model):
 
 
 def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
-                options: NewtonOptions = NewtonOptions(), solver="superlu", tol: float = 1e-10,
+                options: NewtonOptions = NewtonOptions(), solver="auto", tol: float = 1e-10,
                 max_outer: int = 500) -> UzawaSolution:
     """Uzawa algorithm: Newton on U with frozen multipliers, then lam <- min(lam + eps g, 0).
 
@@ -124,7 +124,7 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
             state = (zeros_w, (lam,))
             steplog = StepLog(t, 1.0 / steps)
             try:
-                w, R, blocks = newton(model, model.pattern, lin, w, params, t, state, options,
+                w, R, blocks, _ = newton(model, model.pattern, lin, w, params, t, state, options,
                                       weights, ref, steplog)
             except StepFailure as e:
                 raise ConvergenceError(f"Uzawa inner Newton failed at t={t:.6g}, outer iteration {k}: "

@@ -147,9 +147,14 @@ class Coulomb:
 
     # ------------------------------------------------------------ post-process
     def tractions(self, x, lam, A, geo, obstacle, cp):
-        """(p_N, p_T) = (-lam_N, -lam_T): pressure (>= 0) and tangential traction
-        on the body along the obstacle tangent t'."""
-        return -lam[0], -lam[1]
+        """(p_N, p_T): pressure (>= 0) and tangential traction on the body along
+        the obstacle tangent t'; (-lam_hat_N, -lam_T) at a closed node (lam_hat_N
+        = lam_N + eps_n g_N <= 0, equal to lam_N at convergence), exactly (0, 0)
+        at an open one, whose multipliers are zero only to round-off when Newton
+        started from a predicted state."""
+        lhn = lam[0] + cp["eps_n"] * obstacle.gap(x, geo)
+        closed = lhn <= 0.0
+        return -jnp.where(closed, lhn, 0.0), jnp.where(closed, -lam[1], 0.0)
 
     def status(self, x, lam, A, geo, obstacle, cp, hist):
         """OPEN (0), STICK (1) or SLIP (2) of a node, by the branch the residual

@@ -71,8 +71,11 @@ class AugmentedLagrangian(_Regularised):
         return jnp.concatenate([fx, fl])
 
     def tractions(self, x, lam, A, geo, obstacle, cp):
-        """(p_N, p_T): pressure positive in compression, tangential traction."""
-        return -lam[0], jnp.zeros(())
+        """(p_N, p_T): pressure positive in compression, tangential traction.
+        p_N = -<lam + eps g>_-: equal to -lam at convergence on a closed node and
+        exactly 0 on an open one (whose lam is zero only to round-off when
+        Newton started from a predicted state)."""
+        return -_neg_part(lam[0] + cp["eps"] * obstacle.gap(x, geo)), jnp.zeros(())
 
     def row_scale(self, cp):
         """Factor that gives the multiplier rows force units (convergence norm only)."""

@@ -66,6 +66,9 @@ class LinearElastic(_Elastic):
     """Small-strain isotropic elasticity, W = mu eps:eps + lambda/2 (tr eps)^2."""
 
     finite_strain = False
+    #: stress linear in H and zero at H = 0: the element stiffness does not depend
+    #: on the displacements, so the model computes it once per parameter set
+    linear = True
 
     def energy(self, H, mp):
         mu, lam = self.lame(mp)

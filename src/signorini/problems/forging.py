@@ -192,7 +192,7 @@ def body_volume(model, x) -> float:
 
 
 def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
-        fd_check: bool = True, solver="superlu", force_size: bool = False, rtol: float = 1e-11,
+        fd_check: bool = True, solver="auto", force_size: bool = False, rtol: float = 1e-11,
         fd_step: float = 1e-6) -> dict:
     """Upset the billet with DDM sensitivities of the objective F (eq. 24) and write results.
 
@@ -206,7 +206,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     failure the converged increments and a ``failed`` summary are written first.
     """
     from .. import io, plots
-    from ..runner import Timer, prepare_output, solve_or_report, summary_header
+    from ..runner import Timer, prepare_output, solve_or_report, summary_header, use_solver
     from ..sensitivity import finite_difference
 
     clock = Timer()
@@ -216,6 +216,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     pb = forging_problem(params, mesh=mesh, force_size=force_size)
     v = pb.params
     opts = options(rtol)
+    solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
     names = list(TABLE1)
     info = {"n_r": mesh[0], "n_z": mesh[1], "nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells}
     t0 = clock()
@@ -264,7 +265,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "params": v,
         "mesh": {**info, "dofs": int(model.n_dof)},
         "steps": steps,
-        "solver": getattr(solver, "name", solver),
+        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
         "F": float(F),
         "dF_ddm": dF,
         "dF_fd": fd if fd_check else "not computed (--no-fd)",

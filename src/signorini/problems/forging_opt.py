@@ -58,7 +58,7 @@ def validate(params: dict) -> None:
 
 
 def objective_for(mu: float, *, mesh=(10, 20), steps: int = 50, rtol: float = 1e-11,
-                  solver="superlu", gradient: str = "ddm", history=None, append: bool = False,
+                  solver="auto", gradient: str = "ddm", history=None, append: bool = False,
                   label: str | None = None) -> Objective:
     """The :class:`~signorini.optimize.Objective` F(phi0..phi4) at friction ``mu``."""
     pb = base_problem(tuple(mesh)).with_params(mu=float(mu))
@@ -142,7 +142,7 @@ def _plot_shapes(path, runs: list[dict]):
 
 def optimise_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method: str = "BFGS",
                 gtol: float = 1e-6, maxiter: int = 50, gradient: str = "ddm", resume: bool = False,
-                solver="superlu", rtol: float = 1e-11, phi_min: float = PHI_MIN) -> dict:
+                solver="auto", rtol: float = 1e-11, phi_min: float = PHI_MIN) -> dict:
     """One mu: optimise, write ``out/mu_<mu>/`` and return its summary (see :func:`run`)."""
     from .. import io, plots
     from ..runner import prepare_output
@@ -217,7 +217,7 @@ def optimise_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method:
 
 def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50, gradient: str = "ddm",
-        resume: bool = False, solver="superlu", rtol: float = 1e-11, phi_min: float = PHI_MIN,
+        resume: bool = False, solver="auto", rtol: float = 1e-11, phi_min: float = PHI_MIN,
         mapper=None, extra_summary: dict | None = None) -> dict:
     """Optimise the forging preform for each mu and write the results (module docstring).
 

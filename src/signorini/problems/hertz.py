@@ -17,16 +17,20 @@ b = s (1 - s)^2 with s = (X/2a)^2 for X < 2a).
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from ..contact import AugmentedLagrangian, Contact, Penalty
-from ..errors import InputError, UnknownParameterError
+from ..errors import InputError, SolverError, UnknownParameterError
 from ..loads import Fixed, Pressure
 from ..materials import LinearElastic, NeoHooke
 from ..mesh import graded_coordinates, rectangle
 from ..obstacles import Circle
 from ..problem import Problem
 from ..resources import check_size
+
+log = logging.getLogger("signorini")
 
 DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 1.2, "R": 1.0}
 
@@ -159,14 +163,37 @@ def fine_cell_size(problem: Problem) -> float:
     return problem.mesh.min_edge_length("top")
 
 
+#: the coarsest start mesh has this many cells across the fine zone
+COARSEST = 12
+#: at most this many coarse meshes before the requested one
+MAX_COARSE_LEVELS = 3
+
+
+def coarse_levels(refine: int, n_fine: int = 24) -> list[tuple[int, int]]:
+    """(refine, n_fine) of the meshes that start a one-step solve, coarsest first:
+    the cell count across the fine zone halved down to :data:`COARSEST`, at most
+    :data:`MAX_COARSE_LEVELS` of them (see :mod:`signorini.multilevel`)."""
+    out, r, n = [], refine, n_fine
+    while len(out) < MAX_COARSE_LEVELS:
+        if r > 0:
+            r -= 1
+        elif n % 2 == 0 and n // 2 >= COARSEST:
+            n //= 2
+        else:
+            break
+        out.append((r, n))
+    return out[::-1]
+
+
 #: Hertz's half-space solution assumes a small contact zone, a << R
 VALID_A_OVER_R = 0.3
 
 
 def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         finite_strain: bool = False, steps: int = 1, fd_check: bool = True,
-        sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4, solver="superlu",
-        size: float = 20.0, zone: float = 1.5, force_size: bool = False) -> dict:
+        sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4, solver="auto",
+        size: float = 20.0, zone: float = 1.5, force_size: bool = False,
+        coarse_start: bool = True) -> dict:
     """Solve the Hertz benchmark with DDM sensitivities and write the results.
 
     Writes ``contact.csv``, ``summary.json``, ``pressure.png``,
@@ -174,15 +201,23 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     increment when ``steps > 1``) into ``out``. Returns the summary. On a
     Newton failure the converged increments and ``summary.json`` (status
     ``failed``, the reason) are written before the error is re-raised.
+
+    ``coarse_start`` (one-step runs): Newton starts from the solution of the
+    coarser meshes of :func:`coarse_levels`, interpolated; the finite-difference
+    re-solves start from the converged base solution. Only the first iterate
+    changes, not the result.
     """
     from .. import checks, io, plots
     from ..newton import NewtonOptions
-    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header
+    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
+    from ..multilevel import prolong, solve_coarse_to_fine
+    from ..solution import closed as solution_closed
     from ..sensitivity import finite_difference
 
     clock = Timer()
     out = prepare_output(out)
     options = options or NewtonOptions(rtol=1e-11)
+    solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
     sensitivities = list(sensitivities)
     pb = hertz_problem(params, refine=refine, method=method, finite_strain=finite_strain, size=size,
                        zone=zone, force_size=force_size)
@@ -191,12 +226,24 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": fine_cell_size(pb),
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
+    initial, levels = None, []
+    if coarse_start and steps == 1:
+        coarse = [hertz_problem(params, refine=r, n_fine=n, method=method, finite_strain=finite_strain,
+                                size=size, zone=zone) for r, n in coarse_levels(refine, 24)]
+        if coarse:
+            try:
+                csol, levels = solve_coarse_to_fine(coarse, options=options, solver=solver)
+                initial = prolong(csol, pb)
+            except SolverError as e:  # only an accelerator: the fine solve starts from rest
+                levels = [{"failed": str(e)}]
+                log.info("coarse start failed (%s); Newton starts from the undeformed state", e)
     sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          sensitivities=sensitivities, options=options, solver=solver)
+                          sensitivities=sensitivities, options=options, solver=solver,
+                          initial=initial)
     t_solve = clock() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]
-    closed = c["p_N"] > 0
+    closed = solution_closed(c["p_N"])
     a_fe = float(x[closed].max()) if closed.any() else 0.0
     p0_fe = float(c["p_N"].max())
     _validity(sol, a_fe, v, pb, zone * analytical(**{k: DEFAULTS[k] for k in ("P", "R", "E", "nu")})["a"],
@@ -215,7 +262,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         inner = x < 0.9 * an["a"]  # p_N is not differentiable at x = a
         for n in sensitivities:
             fd = finite_difference(pb, n, lambda s: s.contact()["p_N"][inner], steps=steps,
-                                   options=options, rel_step=fd_step, solver=solver)
+                                   options=options, rel_step=fd_step, solver=solver,
+                                   initial=sol.increments[0].w if coarse_start else None)
             ddm_fd[n] = max_rel_diff(c[f"dp_N_d{n}"][inner], fd)
 
     xa = np.linspace(0, 1.5 * an["a"], 400)
@@ -240,13 +288,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         "method": method,
         "finite_strain": finite_strain,
         "steps": steps,
-        "solver": getattr(solver, "name", solver),
+        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
         "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,
               "error_in_cells": (a_fe - an["a"]) / fine_cell_size(pb)},
         "newton_iterations": sol.newton_iterations,
         "newton_residuals": [inc.newton.residuals for inc in sol.increments],
+        "coarse_start": levels if levels else ("off" if not coarse_start or steps != 1
+                                               else "no coarser mesh"),
         "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,

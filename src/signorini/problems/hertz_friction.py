@@ -142,7 +142,7 @@ def load_increments(solution) -> list[int]:
 
 
 def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd_check: bool = True,
-        sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="superlu",
+        sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="auto",
         size: float = BLOCK, zone: float = 1.5, finite_strain: bool = False,
         force_size: bool = False) -> dict:
     """Solve the frictional Hertz benchmark with path-dependent DDM sensitivities.
@@ -160,7 +160,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     """
     from .. import io, plots
     from ..newton import NewtonOptions
-    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header
+    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
     from ..sensitivity import finite_difference
 
     clock = Timer()
@@ -171,6 +171,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     out = prepare_output(out)
     # rtol 1e-10 leaves margin above the residual's round-off floor at the small early loads
     options = options or NewtonOptions(rtol=1e-10)
+    solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
     pb = hertz_friction_problem(params, refine=refine, size=size, zone=zone,
                                 finite_strain=finite_strain, force_size=force_size)
     v = pb.params
@@ -226,7 +227,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "params": v,
         "steps": steps,
         "finite_strain": finite_strain,
-        "solver": getattr(solver, "name", solver),
+        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "loads": [{k: val for k, val in lv.items() if k != "contact"} for lv in levels],
         "c_over_a": [lv["c_over_a"] for lv in levels],
