@@ -8,12 +8,13 @@ from pathlib import Path
 
 def report(rows: list[dict], out, width: int = 12) -> None:
     """Print ``rows`` as a table (one column per key) and write them to ``out`` (CSV)."""
-    keys = list(rows[0])
+    keys = list(dict.fromkeys(k for r in rows for k in r))  # union, in order of appearance
     print()
     print(" | ".join(f"{k:>{width}.{width}s}" for k in keys))
     for r in rows:
+        vals = [r.get(k, "") for k in keys]
         print(" | ".join(f"{v:>{width}.4g}" if isinstance(v, float) else f"{v!s:>{width}.{width}s}"
-                         for v in r.values()))
+                         for v in vals))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "w", newline="") as f:

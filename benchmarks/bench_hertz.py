@@ -1,32 +1,45 @@
-"""Cost of the pieces of a Hertz solve at ~5k, 50k and 200k DOFs.
+"""Cost of the one-step frictionless Hertz solve at ~5k, 56k, 225k and ~1M DOFs.
 
-Measures per mesh: kernel evaluation + sparse assembly, bare SuperLU
-factorisation of the converged tangent, one Newton iteration (assembly +
-factorisation + solve), the whole solve, the DDM cost per parameter
-(pseudo-load JVP + back-substitution, the factorisation being shared) and the
-Newton iteration count. Prints a table and writes benchmarks/results/hertz.csv.
+For every mesh and linear solver (``pardiso``: MKL PARDISO, what the README's
+install gives on x86-64; ``superlu``: SciPy's fallback), in a fresh process
+each (so that the peak memory is that run's):
 
-    python benchmarks/bench_hertz.py [--sizes small,medium,large]
+* Newton iterations on the requested mesh, and those of the coarse meshes
+  that start it (``signorini.multilevel``), with their cost in equivalent
+  fine iterations (iterations x DOFs ratio);
+* one Newton iteration (kernels + assembly + factorisation + solve, averaged
+  over the fine solve) divided by one bare numeric factorisation of the
+  converged tangent, and the kernel + assembly share of an iteration;
+* the DDM per parameter (pseudo-load + back-substitution) divided by the solve;
+* wall time of the solve (coarse levels included, compilation excluded),
+  seconds per DOF, peak resident memory.
+
+Also the cold start of ``signorini hertz --no-fd`` (imports + JIT + solve of the
+default 3.6k-DOF mesh), with an empty and with a filled compilation cache.
+
+Prints a table and writes benchmarks/results/hertz.csv (and hertz_cold_start.csv).
+
+    python benchmarks/bench_hertz.py [--sizes 5k,56k,225k,1M] [--solvers pardiso,superlu]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import resource
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
-
 from _report import report
 
-import signorini as sg
-from signorini.linsolve import get_solver
-from signorini.problems import hertz
-from signorini.solve import model_for
-
-MESHES = {"small": dict(n_fine=32, refine=0), "medium": dict(n_fine=24, refine=2),
-          "large": dict(n_fine=24, refine=3)}
+#: (refine, n_fine) of each size (block 20 a0, fine zone 1.5 a0)
+MESHES = {"5k": (0, 32), "56k": (2, 24), "225k": (3, 24), "1M": (4, 24)}
 NAMES = ["R", "E", "P"]
+HERE = Path(__file__).parent
 
 
 def best(f, n=3):
@@ -38,56 +51,121 @@ def best(f, n=3):
     return min(ts)
 
 
-def run(size: str, solver: str) -> dict:
-    pb = hertz.hertz_problem(**MESHES[size])
-    sg.solve(pb, sensitivities=NAMES, solver=solver)  # compile (not timed)
+def one(size: str, solver: str) -> dict:
+    """Measure one (size, solver) in this process."""
+    import signorini as sg
+    from signorini.linsolve import get_solver
+    from signorini.multilevel import prolong, solve_coarse_to_fine
+    from signorini.params import as_jax
+    from signorini.problems import hertz
+    from signorini.solve import model_for
+
+    refine, n_fine = MESHES[size]
+    opts = sg.NewtonOptions(rtol=1e-11)
+    pb = hertz.hertz_problem(refine=refine, n_fine=n_fine, force_size=True)
+    coarse = [hertz.hertz_problem(refine=r, n_fine=n) for r, n in hertz.coarse_levels(refine, n_fine)]
+    lin = get_solver(solver)
+
+    def run(sens):
+        initial, levels = None, []
+        if coarse:
+            csol, levels = solve_coarse_to_fine(coarse, options=opts, solver=lin)
+            initial = prolong(csol, pb)
+        return sg.solve(pb, options=opts, solver=lin, sensitivities=sens, initial=initial), levels
+
+    run(NAMES)  # compile every level (not timed)
     t0 = time.perf_counter()
-    sg.solve(pb, solver=solver)
+    sol, levels = run(())
     t_solve = time.perf_counter() - t0
     t0 = time.perf_counter()
-    sol_s = sg.solve(pb, sensitivities=NAMES, solver=solver)
+    sol_s, _ = run(NAMES)
     t_solve_s = time.perf_counter() - t0
+    plain_its = None
+    if size in ("5k", "56k"):  # what the same solve needs from the undeformed state
+        plain_its = sg.solve(pb, options=opts, solver=lin).newton_iterations[0]
     inc = sol_s.increments[-1]
-    m = model_for(pb)
-    from signorini.params import as_jax
-
-    params = as_jax(pb.params)
-    w = inc.w
-    lin = get_solver(solver)
-    t_kernel = best(lambda: m.local_tangents(w, params, 1.0))
-    R, blocks = m.local_tangents(w, params, 1.0)
-    t_scatter = best(lambda: m.pattern.assemble(blocks))
+    m, p = model_for(pb), as_jax(pb.params)
+    R, blocks = m.local_tangents(inc.w, p, 1.0)
+    t_kernel = best(lambda: m.local_tangents(inc.w, p, 1.0))
+    t_asm = best(lambda: m.pattern.assemble(blocks))
     K = m.pattern.assemble(blocks)
-    t_fac = best(lambda: lin.factorize(K), n=2)
-    fac = lin.factorize(K)
-    rhs = -R[m.free]
-    t_bs = best(lambda: fac.solve(rhs))
-    t_iter = t_kernel + t_scatter + t_fac + t_bs
+    sym = bool(sol_s.symmetric)
+    lin.factorize(K, symmetric=sym)
+    t_fac = best(lambda: lin.factorize(K, symmetric=sym), n=2)  # numeric only (analysis kept)
+    fresh = get_solver(solver)
+    t_fac_fresh = best(lambda: get_solver(solver).factorize(K, symmetric=sym), n=1)
+    del fresh
+    lg = sol.increments[-1].newton
+    its = lg.iterations
+    t_iter = (lg.time_assembly + lg.time_factorization + lg.time_solve) / max(its, 1)
     per_param = (inc.timing["pseudo_load"] + inc.timing["back_substitution"]) / len(NAMES)
+    coarse_equiv = sum(sum(lv["newton_iterations"]) * lv["dofs"] for lv in levels) / m.n_dof
     return {
-        "mesh": size, "dofs": m.n_dof, "nnz": K.nnz, "newton_iterations": inc.newton.iterations,
-        "kernels_s": t_kernel, "scatter_s": t_scatter, "factorization_s": t_fac,
-        "back_substitution_s": t_bs, "newton_iteration_s": t_iter,
-        "iteration_over_factorization": t_iter / t_fac, "solve_s": t_solve,
-        "solve_with_3_sensitivities_s": t_solve_s,
-        "ddm_shared_factorization_s": inc.timing["factorization"],
+        "mesh": size, "solver": solver, "dofs": m.n_dof, "nnz": K.nnz, "symmetric": sym,
+        "newton_iterations": its, "coarse_levels": ";".join(
+            f"{lv['dofs']}:{sum(lv['newton_iterations'])}" for lv in levels),
+        "coarse_equivalent_iterations": coarse_equiv,
+        "iterations_without_coarse_start": plain_its,
+        "kernels_s": t_kernel, "assembly_s": t_asm,
+        "factorization_s": t_fac, "factorization_with_analysis_s": t_fac_fresh,
+        "newton_iteration_s": t_iter, "iteration_over_factorization": t_iter / t_fac,
+        "kernel_assembly_share": (t_kernel + t_asm) / t_iter,
+        "solve_s": t_solve, "solve_with_3_sensitivities_s": t_solve_s,
+        "ddm_factorization_s": inc.timing["factorization"],
         "ddm_per_parameter_s": per_param, "ddm_per_parameter_over_solve": per_param / t_solve,
+        "s_per_dof": t_solve / m.n_dof,
         "peak_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--sizes", default="small,medium,large")
-    ap.add_argument("--solver", default="superlu")
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "hertz.csv"))
-    args = ap.parse_args()
+def cold_start() -> list[dict]:
     rows = []
+    with tempfile.TemporaryDirectory() as d:
+        env = {**os.environ, "SIGNORINI_CACHE_DIR": str(Path(d) / "cache")}
+        for state in ("empty cache", "filled cache"):
+            t0 = time.perf_counter()
+            subprocess.run(["signorini", "hertz", "--no-fd", "-q", "--out", str(Path(d) / "out")],
+                           env=env, check=True, capture_output=True)
+            rows.append({"command": "signorini hertz --no-fd", "compilation_cache": state,
+                         "wall_s": time.perf_counter() - t0})
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "import signorini"], check=True)
+    rows.append({"command": "python -c 'import signorini'", "compilation_cache": "-",
+                 "wall_s": time.perf_counter() - t0})
+    return rows
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", default="5k,56k,225k,1M")
+    ap.add_argument("--solvers", default="pardiso,superlu")
+    ap.add_argument("--skip-superlu-above", type=int, default=300_000,
+                    help="do not run SuperLU above this many DOFs (its fill-in needs > 12 GB at 1M)")
+    ap.add_argument("--no-cold-start", action="store_true")
+    ap.add_argument("--one", nargs=2, metavar=("SIZE", "SOLVER"), help=argparse.SUPPRESS)
+    ap.add_argument("--out", default=str(HERE / "results" / "hertz.csv"))
+    args = ap.parse_args()
+    if args.one:
+        print("ROW " + json.dumps(one(*args.one)), flush=True)
+        return
+    rows = []
+    approx = {"5k": 5e3, "56k": 5.6e4, "225k": 2.25e5, "1M": 9e5}
     for size in args.sizes.split(","):
-        r = run(size, args.solver)
-        rows.append(r)
-        print(f"{size}: {r['dofs']} DOFs done", flush=True)
+        for solver in args.solvers.split(","):
+            if solver == "superlu" and approx[size] > args.skip_superlu_above:
+                rows.append({"mesh": size, "solver": solver, "note": "not run (see --skip-superlu-above)"})
+                continue
+            r = subprocess.run([sys.executable, __file__, "--one", size, solver], capture_output=True,
+                               text=True)
+            line = [ln for ln in r.stdout.splitlines() if ln.startswith("ROW ")]
+            if r.returncode or not line:
+                rows.append({"mesh": size, "solver": solver, "note": f"failed: {r.stderr[-300:]}"})
+            else:
+                rows.append(json.loads(line[0][4:]))
+            print(f"{size} {solver}: done", flush=True)
     report(rows, args.out)
+    if not args.no_cold_start:
+        report(cold_start(), str(Path(args.out).with_name("hertz_cold_start.csv")))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,219 @@
+"""The speed-ups of issue 10 change cost, never results: solver choice, the kept
+symbolic analysis, the symmetric factorisation, the stiffness of linear bodies
+computed once, the extrapolating predictor, the coarse-to-fine start, the
+reused DDM factorisation and the persistent compilation cache."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import signorini as sg
+from signorini import linsolve
+from signorini.linsolve import Pardiso, SuperLU, TangentSolver, get_solver
+from signorini.multilevel import prolong, solve_coarse_to_fine
+from signorini.params import as_jax
+from signorini.problems import hertz
+from signorini.problems.hertz_friction import hertz_friction_problem
+from signorini.solve import model_for
+
+HAS_PARDISO = "pardiso" in linsolve.available()
+needs_pardiso = pytest.mark.skipif(not HAS_PARDISO, reason="pypardiso (MKL) is not installed")
+TIGHT = sg.NewtonOptions(rtol=1e-11)
+
+
+def _rel(a, b):
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+# ------------------------------------------------------------------ solver choice
+def test_auto_picks_the_fastest_installed():
+    s = get_solver("auto")
+    assert s.name == ("pardiso" if HAS_PARDISO else "superlu")
+    assert get_solver() .name == s.name  # auto is the default
+    sol = sg.solve(hertz.hertz_problem(n_fine=8, size=8))
+    assert sol.solver == s.name
+
+
+def test_missing_named_solver_says_how_to_install(monkeypatch):
+    def no_mkl():
+        raise sg.InputError("solver 'pardiso' is not installed: `python3 -m pip install pypardiso` "
+                            "(x86-64 only; it brings Intel MKL) (import failed: simulated)")
+
+    monkeypatch.setattr(linsolve, "_MKL", None)
+    monkeypatch.setattr(linsolve, "_load_mkl", no_mkl)
+    with pytest.raises(sg.InputError, match=r"pip install pypardiso"):
+        get_solver("pardiso")
+    with pytest.raises(sg.InputError, match=r"pip install pypardiso"):
+        sg.solve(hertz.hertz_problem(n_fine=8, size=8), solver="pardiso")
+    assert get_solver("auto").name == "superlu"  # auto falls back
+
+
+def test_umfpack_message_names_its_package():
+    if "umfpack" in linsolve.available():
+        pytest.skip("scikit-umfpack is installed here")
+    with pytest.raises(sg.InputError, match=r"pip install scikit-umfpack"):
+        get_solver("umfpack")
+
+
+def test_summary_names_the_solver(tmp_path):
+    s = hertz.run(tmp_path / "h", fd_check=False, size=8, coarse_start=False)
+    assert s["solver"] == get_solver("auto").name and s["symmetric_factorisation"] is True
+
+
+# ---------------------------------------------------------------- factorisations
+def _tangent(pb, friction=False):
+    sol = sg.solve(pb, steps=3 if friction else 1, options=TIGHT, solver="superlu")
+    m, p = model_for(pb), as_jax(pb.params)
+    st = sol.increments[-2].state if friction else None
+    R, blocks = m.local_tangents(sol.increments[-1].w, p, 1.0, st)
+    return m.pattern.assemble(blocks), R[m.free]
+
+
+@needs_pardiso
+@pytest.mark.parametrize("friction", [False, True])
+def test_kept_symbolic_analysis_equals_fresh_factorisation(friction):
+    """Two matrices of one pattern: the second factorisation reuses the analysis of
+    the first (one phase 11) and solves like a fresh solver (to round-off)."""
+    pb = hertz_friction_problem(refine=0) if friction else hertz.hertz_problem(n_fine=8, size=8)
+    K, r = _tangent(pb, friction)
+    K2 = K.copy()  # same pattern (explicit zeros kept), other values, symmetric if K is
+    rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+    K2.data = K.data * (1.0 + 0.01 * np.cos(rows + K.indices))
+    kept = Pardiso()
+    kept.factorize(K, symmetric=not friction)
+    x_kept = kept.factorize(K2, symmetric=not friction).solve(r)
+    assert kept.analyses - kept.reanalyses == 1
+    x_fresh = Pardiso().factorize(K2, symmetric=not friction).solve(r)
+    assert _rel(x_kept, x_fresh) < 1e-10
+    assert np.linalg.norm(K2 @ x_kept - r) <= 1e-12 * np.linalg.norm(r)
+
+
+@needs_pardiso
+def test_one_analysis_for_a_whole_load_path():
+    s = Pardiso()
+    sol = sg.solve(hertz.hertz_problem(n_fine=8, size=8), steps=4, sensitivities=["R"], solver=s)
+    n_fac = sum(lg.iterations for lg in sol.log) + len(sol.increments)  # Newton + DDM
+    assert s.factorizations == n_fac and s.analyses == 1
+
+
+def test_symmetric_factorisation_only_without_history():
+    a = sg.solve(hertz.hertz_problem(n_fine=8, size=8))
+    b = sg.solve(hertz_friction_problem(refine=0), steps=3)
+    assert a.symmetric is True and b.symmetric is False
+    K = sp.csr_matrix(np.array([[2.0, 1.0], [0.0, 2.0]]))
+    ts = TangentSolver(SuperLU(), symmetric_candidate=True)
+    ts.factorize(K)
+    assert ts.symmetric is False  # a candidate whose tangent is not symmetric
+
+
+@pytest.mark.parametrize("name", linsolve.available())
+def test_symmetric_and_general_factorisations_agree_in_hertz(name):
+    pb = hertz.hertz_problem(n_fine=8, size=8)
+    K, r = _tangent(pb)
+    xs = get_solver(name).factorize(K, symmetric=True).solve(r)
+    xg = get_solver(name).factorize(K, symmetric=False).solve(r)
+    assert _rel(xs, xg) < 1e-10
+
+
+def test_refinement_repairs_a_perturbed_factor():
+    """A factor of a nearby matrix, refined against the exact one, reaches the
+    backward error of a fresh solve (this is how a stale pivot order is repaired)."""
+    rng = np.random.default_rng(1)
+    A = sp.random(80, 80, density=0.08, random_state=2) + 6.0 * sp.eye(80)
+    A = A.tocsr()
+    B = (A + 1e-5 * sp.diags(rng.normal(size=80))).tocsr()
+    b = rng.normal(size=80)
+    f = SuperLU().factorize(A).refined_for(B)
+    x = f.solve(b)
+    assert f.refinements >= 1 and f.backward_error <= linsolve.REFINE_TOL
+    assert np.linalg.norm(B @ x - b) < 1e-12 * np.linalg.norm(b)
+
+
+# --------------------------------------------------------- what Newton starts from
+def test_linear_body_stiffness_once_equals_kernel():
+    pb = hertz_friction_problem(refine=0)
+    m, p = model_for(pb), as_jax(pb.params)
+    assert m.linear_elements
+    w = np.random.default_rng(0).normal(size=m.n_dof) * 1e-3
+    st = m.initial_state(np.zeros(m.n_dof), p)
+    R1, b1 = m.local_tangents(w, p, 0.7, st)
+    m.linear_elements = False
+    try:
+        R2, b2 = m.local_tangents(w, p, 0.7, st)
+    finally:
+        m.linear_elements = True
+    assert _rel(R1, R2) < 1e-13
+    assert all(np.max(np.abs(x - y)) <= 1e-12 * np.max(np.abs(y)) for x, y in zip(b1, b2))
+    # the cached stiffness follows E (a solve at other parameter values)
+    p2 = as_jax({**pb.params, "E": 150.0})
+    m.local_tangents(w, p2, 0.7, st)
+    assert np.isclose(m._ke[2][0, 0, 0] / b1[0][0, 0, 0], 1.5)
+
+
+def test_predictor_changes_iterations_not_the_path():
+    pb = hertz_friction_problem(refine=0)
+    names = ["R", "mu", "E"]
+    o = dict(steps=12, sensitivities=names)
+    a = sg.solve(pb, options=sg.NewtonOptions(rtol=1e-10, predictor="none"), **o)
+    b = sg.solve(pb, options=sg.NewtonOptions(rtol=1e-10, predictor="extrapolate"), **o)
+    assert sum(b.newton_iterations) < 0.75 * sum(a.newton_iterations)
+    for ia, ib in zip(a.increments, b.increments):
+        assert _rel(ib.w, ia.w) < 1e-9
+        for n in names:
+            assert _rel(ib.sens[n], ia.sens[n]) < 1e-8
+
+
+def test_coarse_to_fine_start_same_solution_fewer_iterations():
+    fine = hertz.hertz_problem(refine=1)
+    plain = sg.solve(fine, options=TIGHT, sensitivities=["R"])
+    coarse, levels = solve_coarse_to_fine([hertz.hertz_problem(n_fine=12), hertz.hertz_problem()],
+                                          options=TIGHT)
+    assert [lv["dofs"] for lv in levels] == [model_for(hertz.hertz_problem(n_fine=12)).n_dof,
+                                             model_for(hertz.hertz_problem()).n_dof]
+    started = sg.solve(fine, options=TIGHT, sensitivities=["R"], initial=prolong(coarse, fine))
+    assert started.newton_iterations[0] <= 2 < plain.newton_iterations[0]
+    assert _rel(started.increments[0].w, plain.increments[0].w) < 1e-9
+    assert _rel(started.w_sensitivity("R"), plain.w_sensitivity("R")) < 1e-8
+    c1, c2 = plain.contact(), started.contact()
+    assert np.array_equal(c1["p_N"] > 0, c2["p_N"] > 0)  # open nodes exactly zero in both
+
+
+def test_initial_guess_is_checked():
+    pb = hertz.hertz_problem(n_fine=8, size=8)
+    with pytest.raises(sg.InputError, match="initial must be a finite array of shape"):
+        sg.solve(pb, initial=np.zeros(3))
+    with pytest.raises(sg.InputError, match="predictor"):
+        sg.NewtonOptions(predictor="quadratic")
+    with pytest.raises(sg.InputError, match="ddm_factorization"):
+        sg.solve(pb, ddm_factorization="stale")
+
+
+def test_reused_ddm_factorisation_is_exact_to_round_off():
+    pb = hertz_friction_problem(refine=0)
+    names = ["R", "mu", "E"]
+    o = dict(steps=12, sensitivities=names, options=sg.NewtonOptions(rtol=1e-10))
+    a = sg.solve(pb, ddm_factorization="exact", **o)
+    b = sg.solve(pb, ddm_factorization="reuse", **o)
+    assert sum(inc.timing["reused_factorization"] for inc in b.increments) >= 6
+    assert not any(inc.timing["reused_factorization"] for inc in a.increments)
+    for ia, ib in zip(a.increments, b.increments):
+        for n in names:
+            assert _rel(ib.sens[n], ia.sens[n]) < 1e-9
+
+
+# ------------------------------------------------------------ compilation cache
+def test_persistent_cache_directory(tmp_path):
+    code = ("import signorini, jax; from signorini._jax import cache_dir; "
+            "print(cache_dir()); print(jax.config.jax_compilation_cache_dir)")
+    env = {**os.environ, "SIGNORINI_CACHE_DIR": str(tmp_path / "c")}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == [str(tmp_path / "c")] * 2 and (tmp_path / "c").is_dir()
+    env["SIGNORINI_CACHE_DIR"] = ""
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out[0] == "None"
