@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import logging
+from collections import OrderedDict
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,8 +58,11 @@ class Factor:
         self.backward_error = 0.0  # of the last solve (worst column)
 
     def _backward_error(self, r, x, b) -> float:
-        if self._norm is None:
-            self._norm = float(abs(self.K).sum(axis=1).max())
+        if self._norm is None:  # max row sum of |K|
+            K = self.K if getattr(self.K, "format", None) == "csr" else sp.csr_matrix(self.K)
+            rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+            self._norm = float(np.max(np.bincount(rows, weights=np.abs(K.data),
+                                                  minlength=K.shape[0]), initial=0.0))
         amax = lambda a: np.max(np.abs(a), axis=0)  # noqa: E731
         den = self._norm * amax(x) + amax(b)
         return float(np.max(np.where(den > 0, amax(r) / np.where(den > 0, den, 1.0), 0.0)))
@@ -192,6 +196,29 @@ _PARDISO_ERRORS = {-1: "input inconsistent", -2: "not enough memory", -3: "reord
                    -15: "reordering failed (matrix types 11 and 13 only)"}
 
 
+_BLAS = None
+
+
+@contextlib.contextmanager
+def openblas_single_thread():
+    """NumPy's and SciPy's OpenBLAS on one thread for the duration.
+
+    Their idle threads spin after every BLAS call (even a vector norm) and took
+    one of two cores from the PARDISO factorisation that followed: measured 0.085
+    s instead of 0.043 s per numeric factorisation at 56k DOFs. signorini's own
+    BLAS work is vectors only, so one thread costs nothing."""
+    global _BLAS
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - a dependency; tolerate its absence
+        yield
+        return
+    if _BLAS is None:
+        _BLAS = ThreadpoolController()
+    with _BLAS.select(internal_api="openblas").limit(limits=1):
+        yield
+
+
 def _mkl():
     global _MKL
     if _MKL is None:
@@ -219,144 +246,176 @@ def mkl_threads(n: int):
         lib.MKL_Set_Num_Threads(ctypes.c_int(old))
 
 
-class Pardiso(LinearSolver):
-    """Intel MKL PARDISO with symbolic reuse (our own ctypes driver of MKL).
+class _Handle:
+    """One PARDISO instance: its internal pointer, parameters and analysed pattern."""
 
-    One PARDISO handle per object. ``factorize`` runs the analysis (ordering +
-    symbolic factorisation, phase 11) only when the sparsity pattern or the
-    matrix type changes, then the numeric factorisation (phase 22); a factor is
-    valid until the next ``factorize`` of the same object, which is how Newton
-    and the DDM use it. ``analyses`` and ``factorizations`` count the phases.
-    """
+    def __init__(self, f, mtype: int, n: int, indptr: np.ndarray, indices: np.ndarray):
+        self._f = f
+        self.pt = np.zeros(64, dtype=np.int64)
+        self.iparm = np.zeros(64, dtype=np.int32)
+        self.mtype, self.n = mtype, n
+        self.indptr = np.ascontiguousarray(indptr, dtype=np.int32)
+        self.indices = np.ascontiguousarray(indices, dtype=np.int32)
+        self.analysed = False
+        self.generation = 0
+        self.a = None  # values of the current factorisation (kept alive while it is used)
 
-    name = "pardiso"
-    symbolic_reuse = True
+    def matches(self, mtype, n, indptr, indices) -> bool:
+        return (self.mtype == mtype and self.n == n and self.indices.size == indices.size
+                and np.array_equal(self.indptr, indptr) and np.array_equal(self.indices, indices))
 
-    def __init__(self):
-        self._f = _mkl()
-        self._pt = np.zeros(64, dtype=np.int64)
-        self._iparm = np.zeros(64, dtype=np.int32)
-        self._mtype = 0
-        self._key = None  # (mtype, n, indptr, indices) of the analysed pattern
-        self._a = None  # values of the current factorisation (kept alive)
-        self._upper = None  # (mask, indptr, indices) of the upper triangle, symmetric case
-        self.analyses = 0  # symbolic analyses (phase 11), including re-analyses
-        self.reanalyses = 0  # analyses redone because refinement could not repair a kept one
-        self.factorizations = 0
-        self._generation = 0
-
-    # ---------------------------------------------------------------- low level
-    def _call(self, phase: int, a=None, b=None) -> np.ndarray | None:
-        n = self._key[1] if self._key else 0
-        ia, ja = (self._key[2], self._key[3]) if self._key else (None, None)
+    def call(self, phase: int, a=None, b=None) -> np.ndarray | None:
         nrhs = 1 if b is None or b.ndim == 1 else b.shape[1]
         x = None if b is None else np.zeros_like(b)
         err = ctypes.c_int32(0)
         c = ctypes.c_int32
         ptr = lambda arr: None if arr is None else arr.ctypes.data  # noqa: E731
-        self._f(self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(c(1)),
-                ctypes.byref(c(1)), ctypes.byref(c(self._mtype)), ctypes.byref(c(phase)),
-                ctypes.byref(c(n)), ptr(a), ptr(ia), ptr(ja), None, ctypes.byref(c(nrhs)),
-                self._iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), ctypes.byref(c(0)),
-                ptr(b), ptr(x), ctypes.byref(err))
+        self._f(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(c(1)),
+                ctypes.byref(c(1)), ctypes.byref(c(self.mtype)), ctypes.byref(c(phase)),
+                ctypes.byref(c(self.n)), ptr(a), ptr(self.indptr), ptr(self.indices), None,
+                ctypes.byref(c(nrhs)), self.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
+                ctypes.byref(c(0)), ptr(b), ptr(x), ctypes.byref(err))
         if err.value != 0:
             msg = _PARDISO_ERRORS.get(err.value, "unknown error")
             raise SingularTangentError(f"PARDISO phase {phase} failed: error {err.value} ({msg})")
         return x
 
-    def _release(self):
-        if self._key is not None:
-            try:
-                self._call(-1)
-            finally:
-                self._key = None
-                self._a = None
-
-    def _analyse(self, mtype: int, n: int, indptr: np.ndarray, indices: np.ndarray, a):
-        self._release()
-        self._pt[:] = 0
-        ip = self._iparm
+    def analyse(self, a) -> None:
+        """Ordering and symbolic factorisation (phase 11) with the values ``a``
+        (PARDISO's scaling and matching use them)."""
+        self.release()
+        ip = self.iparm
         ip[:] = 0
         ip[0] = 1  # we supply the parameters
         ip[1] = 2  # METIS nested dissection
         ip[7] = 0  # iterative refinement: MKL's default (2 steps when pivots were perturbed)
-        ip[9] = 13 if mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
+        ip[9] = 13 if self.mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
         ip[10] = 1  # scaling
         ip[12] = 1  # weighted matching (needed for the zero diagonal of active multipliers)
         ip[17] = -1  # report the factor's non-zeros
         ip[20] = 1  # Bunch-Kaufman pivoting (symmetric indefinite)
         ip[34] = 1  # zero-based indices
-        self._mtype = mtype
-        self._key = (mtype, n, np.ascontiguousarray(indptr, dtype=np.int32),
-                     np.ascontiguousarray(indices, dtype=np.int32))
-        self._call(11, a)
+        self.call(11, a)
+        self.analysed = True
+
+    def release(self) -> None:
+        if self.analysed:
+            try:
+                self.call(-1)
+            finally:
+                self.analysed = False
+                self.pt[:] = 0
+                self.a = None
+
+
+class Pardiso(LinearSolver):
+    """Intel MKL PARDISO with symbolic reuse (our own ctypes driver of MKL).
+
+    One PARDISO handle per sparsity pattern (up to :attr:`MAX_PATTERNS`, the
+    least recently used released first): ``factorize`` runs the analysis
+    (ordering + symbolic factorisation, phase 11) only for a pattern it has not
+    seen, then the numeric factorisation (phase 22). A factor is valid until the
+    next ``factorize`` of the same pattern, which is how Newton and the DDM use
+    it. ``analyses``, ``reanalyses`` and ``factorizations`` count the phases.
+    """
+
+    name = "pardiso"
+    symbolic_reuse = True
+    #: patterns kept analysed at once (the levels of a coarse-to-fine start)
+    MAX_PATTERNS = 4
+
+    def __init__(self):
+        self._f = _mkl()
+        self._handles: OrderedDict = OrderedDict()
+        self._upper: OrderedDict = OrderedDict()  # CSR pattern -> its upper triangle
+        self.analyses = 0  # symbolic analyses (phase 11), including re-analyses
+        self.reanalyses = 0  # analyses redone because refinement could not repair a kept one
+        self.factorizations = 0
+
+    @property
+    def _iparm(self) -> np.ndarray:
+        """Parameters (and reports) of the most recently used handle."""
+        return next(reversed(self._handles.values())).iparm
+
+    def _upper_triangle(self, A):
+        """(mask, indptr, indices) of the upper triangle of the CSR pattern of A."""
+        key = (A.shape[0], A.nnz)
+        up = self._upper.get(key)
+        if up is None or not (up[0] is A.indices or np.array_equal(up[0], A.indices)) \
+                or not np.array_equal(up[1], A.indptr):
+            n = A.shape[0]
+            rows = np.repeat(np.arange(n), np.diff(A.indptr))
+            mask = A.indices >= rows
+            indptr = np.concatenate([[0], np.cumsum(np.bincount(rows[mask], minlength=n))])
+            up = (A.indices, A.indptr, mask, indptr.astype(np.int32), A.indices[mask].astype(np.int32))
+            self._upper[key] = up
+            while len(self._upper) > self.MAX_PATTERNS:
+                self._upper.popitem(last=False)
+        return up[2], up[3], up[4]
+
+    def _handle(self, mtype, n, indptr, indices, a) -> tuple[_Handle, bool]:
+        for key, h in self._handles.items():
+            if h.matches(mtype, n, indptr, indices):
+                self._handles.move_to_end(key)
+                return h, False
+        h = _Handle(self._f, mtype, n, indptr, indices)
+        h.analyse(a)
         self.analyses += 1
+        self._handles[id(h)] = h
+        while len(self._handles) > self.MAX_PATTERNS:
+            self._handles.popitem(last=False)[1].release()
+        return h, True
 
-    def _same_pattern(self, mtype, n, indptr, indices) -> bool:
-        k = self._key
-        if k is None or k[0] != mtype or k[1] != n:
-            return False
-        return (k[2] is indptr or np.array_equal(k[2], indptr)) and \
-            (k[3] is indices or np.array_equal(k[3], indices))
-
-    # --------------------------------------------------------------- interface
     def factorize(self, K, symmetric=False):
         A = K.tocsr()
         if not A.has_sorted_indices:
             A = A.sorted_indices()
         n = A.shape[0]
         if symmetric:
-            up = self._upper
-            if up is None or up[0] is not A.indices and not (
-                    up[0].shape == A.indices.shape and np.array_equal(up[0], A.indices)
-                    and np.array_equal(up[1], A.indptr)):
-                rows = np.repeat(np.arange(n), np.diff(A.indptr))
-                mask = A.indices >= rows
-                indptr = np.concatenate([[0], np.cumsum(np.bincount(rows[mask], minlength=n))])
-                up = (A.indices, A.indptr, mask, indptr.astype(np.int32),
-                      A.indices[mask].astype(np.int32))
-                self._upper = up
-            a = np.ascontiguousarray(A.data[up[2]])
-            indptr, indices, mtype = up[3], up[4], -2
+            mask, indptr, indices = self._upper_triangle(A)
+            a, mtype = np.ascontiguousarray(A.data[mask]), -2
         else:
-            a = np.ascontiguousarray(A.data)
-            indptr, indices, mtype = A.indptr, A.indices, 11
+            a, indptr, indices, mtype = np.ascontiguousarray(A.data), A.indptr, A.indices, 11
         if np.any(np.diff(indptr) == 0):
             raise SingularTangentError("the tangent has an empty row (singular)")
-        fresh = not self._same_pattern(mtype, n, indptr, indices)
-        if fresh:
-            self._analyse(mtype, n, indptr, indices, a)
-        self._a = a
-        self._call(22, a)
+        h, fresh = self._handle(mtype, n, indptr, indices, a)
+        h.a = a
+        h.call(22, a)
         self.factorizations += 1
-        self._generation += 1
+        h.generation += 1
 
-        def solver_of(generation):
+        def solver_of(generation, owner=self):  # the factor keeps its solver (and handle) alive
             def solve(b):
-                if generation != self._generation:
+                if generation != h.generation or not h.analysed or owner is None:
                     raise InputError("this PARDISO factorisation was replaced by a newer one")
-                return np.ascontiguousarray(self._call(33, a, np.asfortranarray(b)))
+                return np.ascontiguousarray(h.call(33, a, np.asfortranarray(b)))
             return solve
 
         def refactor():
             # The kept analysis carries the scaling and matching of older values; pivots
             # it no longer suits are perturbed, which refinement normally repairs. When it
-            # does not, analyse these values afresh (measured: rare; docs/theory.md §10).
-            self._analyse(mtype, n, indptr, indices, a)
-            self._a = a
-            self._call(22, a)
+            # does not, analyse these values afresh (docs/theory.md §10).
+            h.analyse(a)
+            h.a = a
+            h.call(22, a)
+            self.analyses += 1
             self.reanalyses += 1
-            self._generation += 1
-            return solver_of(self._generation)
+            h.generation += 1
+            return solver_of(h.generation)
 
-        return Factor(solver_of(self._generation), A, None if fresh else refactor)
+        return Factor(solver_of(h.generation), A, None if fresh else refactor)
 
     def describe(self) -> str:
         return "pardiso (Intel MKL PARDISO)"
 
+    def release(self) -> None:
+        """Free every factorisation and analysis of this solver."""
+        while self._handles:
+            self._handles.popitem()[1].release()
+
     def __del__(self):
         try:
-            self._release()
+            self.release()
         except Exception:  # noqa: BLE001 - interpreter shutdown
             pass
 

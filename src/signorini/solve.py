@@ -18,7 +18,7 @@ import numpy as np
 
 from ._jax import jnp
 from .errors import ConvergenceError, InputError, SingularTangentError
-from .linsolve import REFINE_TOL, TangentSolver, get_solver
+from .linsolve import REFINE_TOL, TangentSolver, get_solver, openblas_single_thread
 from .model import Model
 from . import checks
 from .newton import NewtonOptions, StepFailure, StepLog, newton
@@ -102,6 +102,12 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     """
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"steps must be a positive integer (number of load increments), got {steps!r}")
+    with openblas_single_thread():
+        return _solve(problem, steps, sensitivities, options, solver, label, initial,
+                      ddm_factorization)
+
+
+def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_factorization):
     if ddm_factorization not in ("exact", "reuse"):
         raise InputError(f"ddm_factorization must be 'exact' or 'reuse', got {ddm_factorization!r}")
     names = _sensitivity_names(sensitivities)
