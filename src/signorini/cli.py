@@ -199,6 +199,9 @@ def build_parser() -> argparse.ArgumentParser:
     _common(h, HERTZ_SET, 1, "number of equal load increments", _a0("hertz"))
     h.add_argument("--method", choices=["al", "penalty"], default="al",
                    help="contact method: augmented Lagrangian (exact) or penalty (comparator)")
+    h.add_argument("--no-coarse-start", action="store_true",
+                   help="start Newton from the undeformed state instead of the interpolated "
+                        "solution of coarser meshes (one-step runs; the result is the same)")
 
     f = sub.add_parser(
         "hertz-friction", formatter_class=fmt,
@@ -345,6 +348,14 @@ def main(argv=None) -> int:
         logger.removeFilter(flt)
 
 
+def _fmt_coarse(levels) -> str:
+    """' (started from 1705 DOFs: 6 it, 3634 DOFs: 1 it)' for a coarse-to-fine start."""
+    if not isinstance(levels, list) or not levels or "dofs" not in levels[0]:
+        return ""
+    return " (started from " + ", ".join(
+        f"{lv['dofs']} DOFs: {sum(lv['newton_iterations'])} it" for lv in levels) + ")"
+
+
 def _fmt_fd(d) -> str:
     if not isinstance(d, dict):
         return "not computed (--no-fd)"
@@ -359,12 +370,13 @@ def _dispatch(args) -> int:
         s = hertz.run(args.out, params, refine=args.refine, method=args.method,
                       finite_strain=args.finite_strain, steps=args.steps, fd_check=not args.no_fd,
                       solver=args.solver, size=args.block, zone=args.zone_width,
-                      force_size=args.force_size)
+                      force_size=args.force_size, coarse_start=not args.no_coarse_start)
         print(f"Hertz ({args.method}, {s['mesh']['dofs']} DOFs): p0 = {s['p0']['computed']:.5g} "
               f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
               f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
-              f"Newton iterations {s['newton_iterations']}; DDM vs FD (max rel. diff.): "
-              f"{_fmt_fd(s['ddm_vs_fd_rel_diff'])}")
+              f"Newton iterations {s['newton_iterations']}{_fmt_coarse(s['coarse_start'])}; "
+              f"DDM vs FD (max rel. diff.): {_fmt_fd(s['ddm_vs_fd_rel_diff'])}; "
+              f"solver {s['solver']}")
     elif args.command == "hertz-friction":
         from .problems import hertz_friction
 

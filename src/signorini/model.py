@@ -336,11 +336,17 @@ class Model:
         return state, sdot
 
     # --------------------------------------------------------------- residual
-    def residual(self, w, params, t, state_n=None, cases=None):
+    def residual(self, w, params, t, state_n=None, cases=None, part: str = "all"):
         """Global residual R (n_dof,) = internal + contact - external forces;
-        multiplier rows hold the contact-law equations (paper eqs. 19-20)."""
-        re = self._elements(w, params, state_n, tangent=False)[0]
-        R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
+        multiplier rows hold the contact-law equations (paper eqs. 19-20).
+        ``part``: ``"elements"`` (internal forces only) or ``"rest"`` (external
+        and contact forces only) split it for the DDM pseudo-loads."""
+        R = jnp.zeros(self.n_dof)
+        if part != "rest":
+            re = self._elements(w, params, state_n, tangent=False)[0]
+            R = R.at[self.edofs.ravel()].add(re.ravel())
+        if part == "elements":
+            return R
         R = R - self.external_forces(self.reference(params), params, t)
         for i, s, x, lam, A, geo, cp, Xs in self._surface_inputs(w, params, t):
             h = self._node_history(i, state_n, cases)
@@ -387,6 +393,14 @@ class Model:
         Ke, Ke_np = self.element_stiffness(params)
         R, blocks = self._local(w, params, t, state_n, cases, Ke)
         return np.asarray(R), [Ke_np] + [np.asarray(b) for b in blocks[1:]]
+
+    def element_parameters(self) -> set[str] | None:
+        """Names on which the internal forces depend through the material or the
+        shape (None: unknown, a material value is a function of the parameters)."""
+        specs = list(self.material.specs())
+        if any(callable(v) for v in specs):
+            return None
+        return {v for v in specs if isinstance(v, str)} | set(self._shape_names)
 
     def element_stiffness(self, params):
         """(Ke JAX, Ke NumPy) (n_cells, 8, 8) of a linear body, computed once per

@@ -37,12 +37,20 @@ class DDM:
         def wp_dot(params, t, e):
             return jax.jvp(lambda p: model.prescribed_values(p, t), (params,), (e,))[1]
 
-        def pseudo(w, params, t, state_n, cases, w_dot, e, state_dot_n):
-            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_, cases)
+        def pseudo(w, params, t, state_n, cases, w_dot, e, state_dot_n, part):
+            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_, cases, part)
             return jax.jvp(f, (w, params, state_n), (w_dot, e, state_dot_n))[1]
 
+        axes = (None, None, None, None, None, 0, 0, 0)
         self._wp_dot = jax.jit(jax.vmap(wp_dot, (None, None, 0)))
-        self._pseudo = jax.jit(jax.vmap(pseudo, (None, None, None, None, None, 0, 0, 0)))
+        self._pseudo = {part: jax.jit(jax.vmap(lambda *a, part=part: pseudo(*a, part), axes))
+                        for part in ("all", "elements", "rest")}
+        # Names whose pseudo-load has no internal-force part can skip the element
+        # kernels (the costly half of a pseudo-load): those that enter neither the
+        # material nor the shape, nor a prescribed displacement, nor (plasticity)
+        # the element history.
+        el = model.element_parameters()
+        self._element_names = None if (el is None or model.n_state) else el
 
     def solve(self, factor, w, params, t, state_n=None, state_dot_n=None):
         """Sensitivities dw/dphi (n_names, n_dof) at a converged increment.
@@ -62,8 +70,27 @@ class DDM:
             w_dot[:, m.prescribed] = np.asarray(self._wp_dot(params, t, e))
         # friction: the branch of every node fixed as in the converged tangent
         cases = m._cases(w, params, t, state_n) if m.has_contact_history else None
-        P = np.asarray(self._pseudo(w, params, t, state_n, cases, jnp.asarray(w_dot), e, state_dot_n))
+        P = self._pseudo_loads(w, params, t, state_n, cases, w_dot, e, state_dot_n)
         t1 = time.perf_counter()
         w_dot[:, m.free] = -factor.solve(np.ascontiguousarray(P[:, m.free].T)).reshape(m.free.size, -1).T
         t2 = time.perf_counter()
         return w_dot, {"pseudo_load": t1 - t0, "back_substitution": t2 - t1}
+
+    def _pseudo_loads(self, w, params, t, state_n, cases, w_dot, e, state_dot_n) -> np.ndarray:
+        """(n_names, n_dof) pseudo-loads; element kernels only for the names that
+        need them."""
+        m = self.model
+        wd = jnp.asarray(w_dot)
+        if self._element_names is None:
+            return np.asarray(self._pseudo["all"](w, params, t, state_n, cases, wd, e, state_dot_n))
+        moves = np.any(w_dot[:, m.prescribed] != 0.0, axis=1) if m.prescribed.size else \
+            np.zeros(len(self.names), bool)
+        el = np.array([n in self._element_names for n in self.names]) | moves
+        if el.all():
+            return np.asarray(self._pseudo["all"](w, params, t, state_n, cases, wd, e, state_dot_n))
+        P = np.array(self._pseudo["rest"](w, params, t, state_n, cases, wd, e, state_dot_n))
+        if el.any():
+            k = np.nonzero(el)[0]
+            sub = jax.tree_util.tree_map(lambda a: a[k], (wd, e, state_dot_n))
+            P[k] += np.asarray(self._pseudo["elements"](w, params, t, state_n, cases, *sub))
+        return P
