@@ -154,6 +154,12 @@ def _dask_options(p):
                    help="workers of the local cluster (default: the number of cores)")
 
 
+def _coarse_start_option(p):
+    p.add_argument("--no-coarse-start", action="store_true",
+                   help="start the first increment's Newton from the undeformed state instead of "
+                        "the interpolated solution of coarser meshes (the result is the same)")
+
+
 def _solver_options(p):
     p.add_argument("--solver", default="auto", choices=["auto", "pardiso", "superlu", "umfpack"],
                    help="sparse direct solver; auto (default) = the fastest installed: pardiso "
@@ -199,9 +205,7 @@ def build_parser() -> argparse.ArgumentParser:
     _common(h, HERTZ_SET, 1, "number of equal load increments", _a0("hertz"))
     h.add_argument("--method", choices=["al", "penalty"], default="al",
                    help="contact method: augmented Lagrangian (exact) or penalty (comparator)")
-    h.add_argument("--no-coarse-start", action="store_true",
-                   help="start Newton from the undeformed state instead of the interpolated "
-                        "solution of coarser meshes (one-step runs; the result is the same)")
+    _coarse_start_option(h)
 
     f = sub.add_parser(
         "hertz-friction", formatter_class=fmt,
@@ -213,6 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "hertz_friction.pvd. " + UNITS)
     _common(f, FRICTION_SET, 30, "number of load increments, a multiple of 3 (P1 = P/3, P2 = 2P/3 "
             "and P3 = P must be increments)", _a0("hertz_friction"), block=80.0)
+    _coarse_start_option(f)
 
     fg = sub.add_parser(
         "forging", formatter_class=fmt,
@@ -384,7 +389,7 @@ def _dispatch(args) -> int:
         s = hertz_friction.run(args.out, params, refine=args.refine, steps=args.steps,
                                fd_check=not args.no_fd, solver=args.solver, size=args.block,
                                zone=args.zone_width, finite_strain=args.finite_strain,
-                               force_size=args.force_size)
+                               force_size=args.force_size, coarse_start=not args.no_coarse_start)
         ca = ", ".join(f"{lv['c_over_a']:.3f} [{lv['c_over_a_bracket'][0]:.3f}, "
                        f"{lv['c_over_a_bracket'][1]:.3f}]" for lv in s["loads"])
         print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "

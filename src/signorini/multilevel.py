@@ -84,9 +84,12 @@ def prolong(coarse: Solution, fine: Problem, increment: int = 0) -> np.ndarray:
 
 
 def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensitivities=(),
-                         **solve_kwargs) -> tuple[Solution, list[dict]]:
+                         whole_path: bool = True, **solve_kwargs) -> tuple[Solution, list[dict]]:
     """Solve ``problems`` (coarse to fine, same physics), each started from the
     interpolated solution of the one before; sensitivities on the finest only.
+    With ``steps > 1`` the coarse meshes are solved to the end of the first
+    increment, which starts the first increment of the next mesh;
+    ``whole_path=False`` treats the last problem so too (a start for yet another mesh).
 
     Returns:
         (solution of the finest problem, per level: dofs, Newton iterations, time_s).
@@ -97,18 +100,17 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensiti
 
     if not problems:
         raise InputError("solve_coarse_to_fine needs at least one problem")
-    if steps != 1 and len(problems) > 1:
-        raise InputError("solve_coarse_to_fine: the coarse levels give the start of a one-step "
-                         "solve only (steps=1); for load paths the extrapolating predictor of "
-                         "NewtonOptions starts every increment after the first")
     levels, sol, label = [], None, solve_kwargs.pop("label", None)
     for k, pb in enumerate(problems):
-        last = k == len(problems) - 1
+        last = k == len(problems) - 1 and whole_path
         initial = None if sol is None else prolong(sol, pb)
         t0 = time.perf_counter()
+        # coarse levels: the first increment only (its end starts the next level);
+        # later increments start from the extrapolating predictor
         with contextlib.nullcontext() if last else checks.silenced():
             sol = solve(pb, steps=steps, sensitivities=sensitivities if last else (),
-                        initial=initial, label=label if last else f"level {k}", **solve_kwargs)
+                        initial=initial, label=label if last else f"level {k}",
+                        until=1.0 if last else 1.0 / steps, **solve_kwargs)
         levels.append({"dofs": int(sol.model.n_dof), "newton_iterations": list(sol.newton_iterations),
                        "time_s": time.perf_counter() - t0})
         log.debug("coarse-to-fine level %d: %d DOFs, %s iterations", k, sol.model.n_dof,

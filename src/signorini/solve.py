@@ -67,7 +67,7 @@ def ddm_for(model: Model, names: Sequence[str]) -> DDM | None:
 
 def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
           options: NewtonOptions = NewtonOptions(), solver="auto", label: str | None = None,
-          initial=None, ddm_factorization: str = "exact") -> Solution:
+          initial=None, ddm_factorization: str = "exact", until: float = 1.0) -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
 
     Args:
@@ -89,6 +89,9 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             tangent; ``"reuse"``: it solves with the last Newton factorisation,
             refined against the converged tangent to the backward error of a fresh
             solve, and factorises afresh only if that refinement falls short.
+        until: stop the load path at this load factor (the increments keep the
+            nominal size 1/steps); a coarse-to-fine start solves the coarse meshes
+            only to the end of the first increment.
 
     Returns:
         A :class:`~signorini.solution.Solution` with every converged increment;
@@ -104,10 +107,13 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
         raise InputError(f"steps must be a positive integer (number of load increments), got {steps!r}")
     with openblas_single_thread():
         return _solve(problem, steps, sensitivities, options, solver, label, initial,
-                      ddm_factorization)
+                      ddm_factorization, until)
 
 
-def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_factorization):
+def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_factorization,
+           until):
+    if not (isinstance(until, (int, float)) and 0.0 < until <= 1.0):
+        raise InputError(f"until must be a load factor in (0, 1], got {until!r}")
     if ddm_factorization not in ("exact", "reuse"):
         raise InputError(f"ddm_factorization must be 'exact' or 'reuse', got {ddm_factorization!r}")
     names = _sensitivity_names(sensitivities)
@@ -139,7 +145,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     inc_checks.start(w)
 
     t, dt_nominal = 0.0, 1.0 / steps
-    w_prev, dt_prev = None, None
+    path = [(0.0, w)]  # the last converged (t, w), for the predictor
     if initial is not None:
         initial = np.asarray(initial, dtype=float)
         if initial.shape != (model.n_dof,) or not np.all(np.isfinite(initial)):
@@ -153,17 +159,16 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         progress.close("failed")
         return ConvergenceError(message, partial=sol)
 
-    while t < 1.0 - 1e-12:
-        dt = min(dt, 1.0 - t)
-        t_new = t + dt if 1.0 - (t + dt) > 1e-12 else 1.0
+    while t < until - 1e-12:
+        dt = min(dt, until - t)
+        t_new = t + dt if until - (t + dt) > 1e-12 else until
         steplog = StepLog(t_new, dt)
         sol.log.append(steplog)
         w_trial = w.copy()
         if initial is not None and not sol.increments and t == 0.0:
             w_trial[model.free] = initial[model.free]
-        elif options.predictor == "extrapolate" and w_prev is not None:
-            # linear extrapolation of the last two converged increments (free DOFs)
-            w_trial[model.free] += (dt / dt_prev) * (w - w_prev)[model.free]
+        elif options.predictor == "extrapolate" and len(path) >= 2:
+            w_trial[model.free] = _extrapolate(path, t_new)[model.free]
         if model.prescribed.size:
             w_trial[model.prescribed] = np.asarray(model.prescribed_values(params, t_new))
         ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t_new))[model.free]))
@@ -231,7 +236,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         sol.increments.append(inc)
         progress.increment(t_new, steplog)
         inc_checks.after(w_trial, t_new, len(sol.increments))
-        w_prev, dt_prev = w, t_new - t
+        path = (path + [(t_new, w_trial)])[-_ORDER - 1:]
         w, t = w_trial, t_new
         cuts = 0  # max_cuts counts the halvings of one increment
         if dt < dt_nominal:
@@ -241,6 +246,26 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     sol.status = "converged"
     progress.close("converged")
     return sol
+
+
+#: polynomial order of the predictor: linear. Quadratic extrapolation through the
+#: last three states was measured worse on the frictional Hertz path (5.5 instead
+#: of 3.0 iterations per increment at 60k DOFs, 10 increments): a contact or
+#: stick zone that grows like sqrt(t) is not a smooth function of t at its nodes
+_ORDER = 1
+
+
+def _extrapolate(path, t):
+    """Lagrange extrapolation to t through the last converged (t_k, w_k)."""
+    ts = [p[0] for p in path]
+    out = np.zeros_like(path[-1][1])
+    for i, (ti, wi) in enumerate(path):
+        li = 1.0
+        for j, tj in enumerate(ts):
+            if j != i:
+                li *= (t - tj) / (ti - tj)
+        out += li * wi
+    return out
 
 
 def _sensitivity_names(sensitivities) -> list[str]:

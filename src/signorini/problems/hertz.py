@@ -185,6 +185,26 @@ def coarse_levels(refine: int, n_fine: int = 24) -> list[tuple[int, int]]:
     return out[::-1]
 
 
+def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options, solver):
+    """(initial, levels): the start of the first increment of ``pb`` from the
+    meshes ``build(refine, n_fine)`` of :func:`coarse_levels`, solved coarse to
+    fine to the end of that increment; (None, []) without a coarser mesh. A
+    failing coarse solve only means no coarse start (logged, and recorded in
+    ``levels``)."""
+    from ..multilevel import prolong, solve_coarse_to_fine
+
+    coarse = [build(r, n) for r, n in coarse_levels(refine, n_fine)]
+    if not coarse:
+        return None, []
+    try:
+        csol, levels = solve_coarse_to_fine(coarse, steps=steps, options=options, solver=solver,
+                                            whole_path=False)
+        return prolong(csol, pb), levels
+    except SolverError as e:
+        log.info("coarse start failed (%s); Newton starts from the undeformed state", e)
+        return None, [{"failed": str(e)}]
+
+
 #: Hertz's half-space solution assumes a small contact zone, a << R
 VALID_A_OVER_R = 0.3
 
@@ -202,15 +222,14 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     Newton failure the converged increments and ``summary.json`` (status
     ``failed``, the reason) are written before the error is re-raised.
 
-    ``coarse_start`` (one-step runs): Newton starts from the solution of the
-    coarser meshes of :func:`coarse_levels`, interpolated; the finite-difference
-    re-solves start from the converged base solution. Only the first iterate
-    changes, not the result.
+    ``coarse_start``: the first increment's Newton starts from the solution of
+    the coarser meshes of :func:`coarse_levels`, interpolated; the
+    finite-difference re-solves start from the converged base solution. Only
+    the first iterate changes, not the result.
     """
     from .. import checks, io, plots
     from ..newton import NewtonOptions
     from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
-    from ..multilevel import prolong, solve_coarse_to_fine
     from ..solution import closed as solution_closed
     from ..sensitivity import finite_difference
 
@@ -227,16 +246,11 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
     initial, levels = None, []
-    if coarse_start and steps == 1:
-        coarse = [hertz_problem(params, refine=r, n_fine=n, method=method, finite_strain=finite_strain,
-                                size=size, zone=zone) for r, n in coarse_levels(refine, 24)]
-        if coarse:
-            try:
-                csol, levels = solve_coarse_to_fine(coarse, options=options, solver=solver)
-                initial = prolong(csol, pb)
-            except SolverError as e:  # only an accelerator: the fine solve starts from rest
-                levels = [{"failed": str(e)}]
-                log.info("coarse start failed (%s); Newton starts from the undeformed state", e)
+    if coarse_start:
+        initial, levels = coarse_start_for(
+            pb, lambda r, n: hertz_problem(params, refine=r, n_fine=n, method=method,
+                                           finite_strain=finite_strain, size=size, zone=zone),
+            refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           sensitivities=sensitivities, options=options, solver=solver,
                           initial=initial)
@@ -295,8 +309,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
               "error_in_cells": (a_fe - an["a"]) / fine_cell_size(pb)},
         "newton_iterations": sol.newton_iterations,
         "newton_residuals": [inc.newton.residuals for inc in sol.increments],
-        "coarse_start": levels if levels else ("off" if not coarse_start or steps != 1
-                                               else "no coarser mesh"),
+        "coarse_start": levels if levels else ("off" if not coarse_start else "no coarser mesh"),
         "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,

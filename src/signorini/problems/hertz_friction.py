@@ -144,7 +144,7 @@ def load_increments(solution) -> list[int]:
 def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd_check: bool = True,
         sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="auto",
         size: float = BLOCK, zone: float = 1.5, finite_strain: bool = False,
-        force_size: bool = False) -> dict:
+        force_size: bool = False, coarse_start: bool = True) -> dict:
     """Solve the frictional Hertz benchmark with path-dependent DDM sensitivities.
 
     Writes ``contact_P{1,2,3}.csv`` (``x_ref, x, p_N, p_T, dp_N_d<name>,
@@ -179,8 +179,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": h,
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
+    initial, levels = None, []
+    if coarse_start:
+        initial, levels = hertz.coarse_start_for(
+            pb, lambda r, n: hertz_friction_problem(params, refine=r, n_fine=n, size=size, zone=zone,
+                                                    finite_strain=finite_strain),
+            refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz_friction", pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          sensitivities=sensitivities, options=options, solver=solver)
+                          sensitivities=sensitivities, options=options, solver=solver,
+                          initial=initial)
     t_solve = clock() - t0
 
     levels = []
@@ -218,7 +225,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
                 c = s.contact(k3)
                 return np.concatenate([c["p_N"][inner], c["p_T"][inner]])
 
-            fd = finite_difference(pb, n, q, steps=steps, options=options, rel_step=fd_step, solver=solver)
+            fd = finite_difference(pb, n, q, steps=steps, options=options, rel_step=fd_step,
+                                   solver=solver, initial=sol.increments[0].w if coarse_start else None)
             c3 = levels[-1]["contact"]
             ddm_fd[n] = max_rel_diff(np.concatenate([c3[f"dp_N_d{n}"][inner], c3[f"dp_T_d{n}"][inner]]), fd)
 
@@ -226,6 +234,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     summary.update({
         "params": v,
         "steps": steps,
+        "coarse_start": levels if levels else ("off" if not coarse_start else "no coarser mesh"),
         "finite_strain": finite_strain,
         "solver": solver.name, "symmetric_factorisation": sol.symmetric,
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
