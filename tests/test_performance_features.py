@@ -219,3 +219,30 @@ def test_persistent_cache_directory(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True).stdout.split()
     assert out[0] == "None"
+
+
+def test_until_stops_the_path_with_nominal_increments():
+    pb = hertz_friction_problem(refine=0)
+    full = sg.solve(pb, steps=6, sensitivities=["mu"])
+    half = sg.solve(pb, steps=6, sensitivities=["mu"], until=0.5)
+    assert [round(i.t, 12) for i in half.increments] == [round(1 / 6, 12), round(2 / 6, 12), 0.5]
+    for a, b in zip(half.increments, full.increments):
+        assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["mu"], b.sens["mu"]) < 1e-8
+    with pytest.raises(sg.InputError, match="until"):
+        sg.solve(pb, until=1.5)
+
+
+def test_coarse_start_of_a_frictional_path():
+    """The coarse meshes are solved to the end of the first increment only; the
+    fine path is the one from rest."""
+    fine = hertz_friction_problem(refine=1)
+    o = sg.NewtonOptions(rtol=1e-10)
+    initial, levels = hertz.coarse_start_for(
+        fine, lambda r, n: hertz_friction_problem(refine=r, n_fine=n), 1, 24, steps=6, options=o,
+        solver="auto")
+    assert len(levels) == 2 and all(len(lv["newton_iterations"]) == 1 for lv in levels)
+    plain = sg.solve(fine, steps=6, options=o, sensitivities=["R"])
+    started = sg.solve(fine, steps=6, options=o, sensitivities=["R"], initial=initial)
+    assert started.newton_iterations[0] <= 2 < plain.newton_iterations[0]
+    for a, b in zip(started.increments, plain.increments):
+        assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["R"], b.sens["R"]) < 1e-8
