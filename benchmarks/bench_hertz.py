@@ -62,7 +62,8 @@ def one(size: str, solver: str) -> dict:
     from signorini.solve import model_for
 
     refine, n_fine = MESHES[size]
-    opts = sg.NewtonOptions(rtol=1e-11)
+    opts = sg.NewtonOptions()  # rtol 1e-10 (the default, as before): 1e-11 is below the
+    # round-off floor of the residual at 225k DOFs (1.9e-11, stagnation check)
     pb = hertz.hertz_problem(refine=refine, n_fine=n_fine, force_size=True)
     coarse = [hertz.hertz_problem(refine=r, n_fine=n) for r, n in hertz.coarse_levels(refine, n_fine)]
     lin = get_solver(solver)

@@ -1,7 +1,9 @@
 """Frictional Hertz (mu = 0.3, R = 10) at ~5k, 56k and ~1M DOFs.
 
 One fresh process per (mesh, solver), so that the peak memory is that run's.
-Reports Newton iterations (total and per increment), wall time of the solve
+As ``signorini hertz-friction``: the first increment starts from the
+interpolated solution of coarser meshes, the later ones from the
+extrapolating predictor. Reports Newton iterations (total and per increment), wall time of the solve
 without and with DDM sensitivities for R, mu and E, the DDM part (factorisation
 of the converged tangent + pseudo-loads + back-substitutions), the share of
 kernels + assembly in the Newton iterations, and the peak resident memory.
@@ -36,6 +38,7 @@ HERE = Path(__file__).parent
 def one(size: str, steps: int, solver: str, warm: bool) -> dict:
     import signorini as sg
     from signorini.linsolve import get_solver
+    from signorini.problems import hertz
     from signorini.problems.hertz_friction import hertz_friction_problem
 
     refine, n_fine = MESHES[size]
@@ -44,15 +47,24 @@ def one(size: str, steps: int, solver: str, warm: bool) -> dict:
     t_build = time.perf_counter() - t0
     lin = get_solver(solver)
     opts = sg.NewtonOptions(rtol=RTOL[size])
+
+    def run(sens, steps_=steps):
+        # as `signorini hertz-friction`: the first increment starts from coarser meshes
+        initial, levels = hertz.coarse_start_for(
+            pb, lambda r, n: hertz_friction_problem(refine=r, n_fine=n), refine, n_fine,
+            steps=steps_, options=opts, solver=lin)
+        return sg.solve(pb, steps=steps_, sensitivities=sens, solver=lin, options=opts,
+                        initial=initial), levels
+
     if warm:  # compile (not timed); skipped for the largest mesh, whose first run is the run
-        sg.solve(pb, steps=3, sensitivities=NAMES, solver=lin, options=opts)
+        run(NAMES, 3)
     t0 = time.perf_counter()
-    sol_s = sg.solve(pb, steps=steps, sensitivities=NAMES, solver=lin, options=opts)
+    sol_s, levels = run(NAMES)
     t_sens = time.perf_counter() - t0
     t_plain = None
     if warm:
         t0 = time.perf_counter()
-        sg.solve(pb, steps=steps, solver=lin, options=opts)
+        run(())
         t_plain = time.perf_counter() - t0
     logs = sol_s.log
     its = sol_s.newton_iterations
@@ -68,6 +80,8 @@ def one(size: str, steps: int, solver: str, warm: bool) -> dict:
         "increments": len(sol_s.increments),
         "newton_iterations_total": sum(its), "iterations_per_increment": sum(its) / len(its),
         "max_iterations_per_increment": max(its), "first_increment_iterations": its[0],
+        "iterations": " ".join(map(str, its)),
+        "coarse_levels": ";".join(f"{lv['dofs']}:{sum(lv['newton_iterations'])}" for lv in levels),
         "solve_s": t_plain, "solve_with_3_sensitivities_s": t_sens,
         "includes_compilation": not warm, "mesh_build_s": t_build,
         "newton_kernels_assembly_s": asm, "newton_factorization_s": fac, "newton_solve_s": bsub,

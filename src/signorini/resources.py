@@ -1,8 +1,8 @@
 """Estimates of a run's size before it is built, and a guard against runs the
 machine cannot hold.
 
-The peak-memory model is fitted to measurements of the Hertz benchmark with
-SciPy's SuperLU on 2 cores (``benchmarks/bench_hertz.py``: 0.4 GB at 5k DOFs,
+The peak-memory model (of the solver ``auto`` picks) is fitted to
+measurements of the Hertz benchmark; with SciPy's SuperLU on 2 cores (``benchmarks/bench_hertz.py``: 0.4 GB at 5k DOFs,
 0.9 GB at 56k, 2.7 GB at 225k); it grows a little faster than linearly, like
 the fill-in of a sparse LU of a 2-D mesh. It is an estimate, printed as one.
 """
@@ -19,9 +19,15 @@ log = logging.getLogger("signorini")
 GB = 1024.0**3
 
 
-def estimated_peak_memory(n_dof: int) -> float:
-    """Estimated peak resident memory in bytes of a solve with ``n_dof`` unknowns."""
+def estimated_peak_memory(n_dof: int, solver: str = "superlu") -> float:
+    """Estimated peak resident memory in bytes of a solve with ``n_dof`` unknowns.
+
+    ``superlu``: fitted as described above. ``pardiso``: fitted to the Hertz
+    benchmarks with MKL PARDISO (0.41 GB at 5k DOFs, 0.79 at 56k, 1.77 at 225k,
+    5.4 at 0.9M symmetric; 6.8 GB for the frictional Hertz at 1.06M, LU)."""
     n = max(int(n_dof), 1)
+    if solver == "pardiso":
+        return (0.4 + 6.2e-6 * n) * GB
     return (0.5 + 1.1e-5 * n * (n / 2.0e5) ** 0.25) * GB
 
 
@@ -54,7 +60,9 @@ def check_size(n_dof: int, *, force: bool = False, what: str = "this run") -> fl
     Raises:
         ResourceError: the estimate exceeds the available memory and ``force`` is False.
     """
-    need = estimated_peak_memory(n_dof)
+    from .linsolve import get_solver
+
+    need = estimated_peak_memory(n_dof, get_solver("auto").name)
     have = available_memory()
     log.info("%s: %d unknowns, estimated peak memory %.2g GB (%s available)", what, n_dof,
              need / GB, "unknown" if have is None else f"{have / GB:.3g} GB")
