@@ -179,9 +179,9 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": h,
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
-    initial, levels = None, []
+    initial, coarse = None, []
     if coarse_start:
-        initial, levels = hertz.coarse_start_for(
+        initial, coarse = hertz.coarse_start_for(
             pb, lambda r, n: hertz_friction_problem(params, refine=r, n_fine=n, size=size, zone=zone,
                                                     finite_strain=finite_strain),
             refine, 24, steps=steps, options=options, solver=solver)
@@ -234,7 +234,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     summary.update({
         "params": v,
         "steps": steps,
-        "coarse_start": levels if levels else ("off" if not coarse_start else "no coarser mesh"),
+        "coarse_start": coarse if coarse else ("off" if not coarse_start else "no coarser mesh"),
         "finite_strain": finite_strain,
         "solver": solver.name, "symmetric_factorisation": sol.symmetric,
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
