@@ -95,9 +95,7 @@ def one(size: str, solver: str) -> dict:
     sym = bool(sol_s.symmetric)
     lin.factorize(K, symmetric=sym)
     t_fac = best(lambda: lin.factorize(K, symmetric=sym), n=2)  # numeric only (analysis kept)
-    fresh = get_solver(solver)
     t_fac_fresh = best(lambda: get_solver(solver).factorize(K, symmetric=sym), n=1)
-    del fresh
     its = sol.increments[-1].newton.iterations
     t_iter = (plain.time_assembly - t_kernel + plain.time_factorization + plain.time_solve) / plain_its
     per_param = (inc.timing["pseudo_load"] + inc.timing["back_substitution"]) / len(NAMES)

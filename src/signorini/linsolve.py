@@ -109,7 +109,6 @@ class LinearSolver:
     """Base class: ``factorize(K, symmetric=False) -> Factor``."""
 
     name = "?"
-    symbolic_reuse = False  # does the solver keep the symbolic analysis of a pattern?
 
     def factorize(self, K: sp.spmatrix, symmetric: bool = False) -> Factor:
         raise NotImplementedError
@@ -320,7 +319,6 @@ class Pardiso(LinearSolver):
     """
 
     name = "pardiso"
-    symbolic_reuse = True
     #: patterns kept analysed at once (the levels of a coarse-to-fine start)
     MAX_PATTERNS = 4
 
@@ -384,9 +382,9 @@ class Pardiso(LinearSolver):
         self.factorizations += 1
         h.generation += 1
 
-        def solver_of(generation, owner=self):  # the factor keeps its solver (and handle) alive
+        def solver_of(generation):
             def solve(b):
-                if generation != h.generation or not h.analysed or owner is None:
+                if generation != h.generation or not h.analysed:
                     raise InputError("this PARDISO factorisation was replaced by a newer one")
                 return np.ascontiguousarray(h.call(33, a, np.asfortranarray(b)))
             return solve
@@ -403,7 +401,9 @@ class Pardiso(LinearSolver):
             h.generation += 1
             return solver_of(h.generation)
 
-        return Factor(solver_of(h.generation), A, None if fresh else refactor)
+        factor = Factor(solver_of(h.generation), A, None if fresh else refactor)
+        factor.owner = self  # keeps this solver, and so its PARDISO handles, alive
+        return factor
 
     def describe(self) -> str:
         return "pardiso (Intel MKL PARDISO)"

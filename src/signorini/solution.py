@@ -13,20 +13,6 @@ from .newton import StepLog
 from .params import as_jax, unit_tangents
 
 
-#: a node is closed when its pressure exceeds this fraction of the largest one:
-#: an open node's multiplier is zero only to round-off (1e-17 of the peak
-#: pressure) when Newton starts from a predicted or interpolated state
-CLOSED_RTOL = 1e-10
-
-
-def closed(p_N) -> np.ndarray:
-    """Mask of the closed nodes of a surface from their pressures (see CLOSED_RTOL)."""
-    p = np.asarray(p_N, dtype=float)
-    if p.size == 0:
-        return np.zeros(0, bool)
-    return p > CLOSED_RTOL * max(float(np.max(np.abs(p))), 1e-300)
-
-
 @dataclass
 class Increment:
     """One converged load increment.
