@@ -198,6 +198,13 @@ def _contract(w, dNdX, hoop, P, C):
     return r.reshape(8), K.reshape(8, 8)
 
 
+def element_yield_ratio(ue, Xe, material, mp, hn, kinematics=PLANE_STRAIN, formulation=STANDARD):
+    """(4,) ``material.yield_ratio`` at the Gauss points of one element (the trial
+    state of the increment from h_n)."""
+    H, _ = gauss_gradients(ue, Xe, kinematics, formulation)
+    return jax.vmap(lambda h, hs: material.yield_ratio(h, hs, mp))(H, _history(material, hn))
+
+
 def element_stress(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formulation=STANDARD):
     """Cauchy stress (3, 3) averaged over the Gauss points of one element (with
     history: the stress of the update from h_n, i.e. at the end of the increment)."""

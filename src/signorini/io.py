@@ -182,7 +182,11 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     """Write one increment as VTU: displacement, contact tractions and gap (point
     data; with friction also ``contact_status`` 0 open / 1 stick / 2 slip and
     ``slip_increment``), Cauchy stress (cell data), and the sensitivity of each
-    of them with respect to every design parameter (``d<field>_d<name>``)."""
+    of them with respect to every design parameter (``d<field>_d<name>``); the
+    switch points of the increment (docs/theory.md §11: point data ``switch`` 1
+    weakly active, 2 stick/slip switch; cell data ``plastic_switch``) and, on
+    the last increment, an adjoint shape gradient if one was attached
+    (``solution.shape_gradient``, (n_nodes, 2))."""
     path = Path(path)
     m = solution.model
     X = solution.reference()
@@ -205,19 +209,33 @@ def write_vtu(solution, path, i: int = -1) -> Path:
             slip = np.zeros(m.n_nodes)
             slip[c["node"]] = c["slip"]
             point["slip_increment" + tag] = slip
+    inc = solution.increments[i]
+    if inc.switches is not None:  # docs/theory.md §11: 1 weakly active, 2 stick/slip switch
+        code = np.zeros(m.n_nodes)
+        for nodes in inc.switches["stick_slip"]:
+            code[nodes] = 2
+        for nodes in inc.switches["weakly_active"]:
+            code[nodes] = 1
+        point["switch"] = code
     stress, dstress = solution.stress(i)
     cell = {"cauchy_stress": [stress.reshape(-1, 9)]}
     for name, d in dstress.items():
         cell[f"dcauchy_stress_d{name}"] = [np.asarray(d).reshape(-1, 9)]
     alpha = getattr(m.material, "equivalent_plastic_strain", None)
-    inc = solution.increments[i]
-    if alpha is not None and m.n_state and inc.state is not None:
+    state = solution.state_after(range(len(solution.increments))[i])
+    if alpha is not None and m.n_state and state is not None:
         # Gauss-point history after the increment, averaged per cell
-        cell["equivalent_plastic_strain"] = [np.asarray(inc.state[2])[..., 9].mean(axis=1)]
+        cell["equivalent_plastic_strain"] = [np.asarray(state[2])[..., 9].mean(axis=1)]
         if inc.state_sens is not None:
             for k, name in enumerate(solution.names):
                 cell[f"dequivalent_plastic_strain_d{name}"] = [
                     np.asarray(inc.state_sens[2])[k, ..., 9].mean(axis=1)]
+    if inc.switches is not None and m.n_state:
+        on = np.zeros(len(m.conn))
+        on[inc.switches["elastic_plastic"]] = 1
+        cell["plastic_switch"] = [on]
+    if getattr(solution, "shape_gradient", None) is not None and i in (-1, len(solution.increments) - 1):
+        point["adjoint_shape_gradient"] = _vec3(solution.shape_gradient)
     mesh = meshio.Mesh(_vec3(X), [("quad", m.conn)], point_data=point, cell_data=cell)
     mesh.write(path)
     return path

@@ -38,6 +38,9 @@ from .obstacles import Linearized
 from .params import as_jax, check_names, names_in, resolve, unit_tangents
 from .problem import Problem
 
+#: reserved parameter name: every nodal coordinate of the reference mesh (n_nodes, 2)
+NODES = "nodes"
+
 
 class Model:
     """Kernels, DOF layout and sparsity pattern of a :class:`Problem`.
@@ -85,6 +88,7 @@ class Model:
         self._status = jax.jit(self.contact_status, static_argnums=4)
         self._fields = jax.jit(self.contact_fields, static_argnums=3)
         self._update = jax.jit(self.update)
+        self._switch_fields = jax.jit(self.switch_fields)
         self._update_jvp = jax.jit(jax.vmap(
             lambda w, p, t, s, wd, e, sd: jax.jvp(lambda w_, p_, s_: self.update(w_, p_, t, s_),
                                                   (w, p, s), (wd, e, sd))[1],
@@ -182,10 +186,14 @@ class Model:
 
     # ----------------------------------------------------------- pure kernels
     def reference(self, params):
-        """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities."""
+        """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities (and
+        by ``params["nodes"]`` (n_nodes, 2), the shape field of every nodal
+        coordinate, when an adjoint gradient asks for it: docs/theory.md §11)."""
         X = self._X0
         for k in self._shape_names:
             X = X + (params[k] - self.problem.shape_nominal[k]) * self._V[k]
+        if NODES in params:
+            X = X + params[NODES]
         return X
 
     def external_forces(self, X, params, t):
@@ -446,6 +454,33 @@ class Model:
             xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
         gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self._obstacle_at(s, X0), hs))(x, h, Xs)
         return st, gt
+
+    def switch_fields(self, w, params, t, state_n=None):
+        """Pure function: what decides the branches of the non-smooth laws at w
+        (docs/theory.md §11): per surface ``{"gap", "p_N", "stick_margin"}`` (nc,)
+        (stick margin |lam^_T| - rho, inf where there is no friction branch), and
+        the yield ratio (n_cells, 4) of a material with ``yield_ratio`` (None else);
+        state_n is the state before the increment of w."""
+        X = self.reference(params)
+        u, lams = self.split(w)
+        out = []
+        for i, s in enumerate(self.surfaces):
+            x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
+            meth = s.contact.method
+            f = self.contact_fields(w, params, t, i)
+            margin = jnp.full(s.nodes.size, jnp.inf)
+            if hasattr(meth, "stick_margin"):
+                h = self._node_history(i, state_n)
+                margin = jax.vmap(lambda xs, ls, a, hs, X0, s=s, meth=meth, geo=geo, cp=cp: meth.stick_margin(
+                    xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
+            out.append({"gap": f["gap"], "p_N": f["p_N"], "stick_margin": margin})
+        ratio = None
+        if self.n_state and hasattr(self.material, "yield_ratio"):
+            mp = self.material.values(params)
+            kin, form, mat = self.kinematics, self.formulation, self.material
+            ratio = jax.vmap(lambda ue, Xe, he: element.element_yield_ratio(ue, Xe, mat, mp, he, kin, form))(
+                u[self.conn], X[self.conn], self._material_history(state_n))
+        return tuple(out), ratio
 
     def stresses(self, w, params, state_n=None):
         """Pure function: element-averaged Cauchy stress (n_cells, 3, 3) (with

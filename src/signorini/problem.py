@@ -54,6 +54,9 @@ class Problem:
     formulation: object = None
 
     def __post_init__(self):
+        if "nodes" in self.params:
+            raise InputError("the parameter name 'nodes' is reserved for the gradient with respect "
+                             "to every nodal coordinate (signorini.gradient); rename the parameter")
         object.__setattr__(self, "params", {k: float(v) for k, v in self.params.items()})
         object.__setattr__(self, "fixed", tuple(self.fixed))
         object.__setattr__(self, "loads", tuple(self.loads))

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from . import io
+from .sensitivity import nonsmooth
 from .errors import InputError
 
 log = logging.getLogger("signorini")
@@ -50,6 +51,8 @@ def summary_header(status: str, solution=None, reason: str = "") -> dict:
     if solution is not None and solution.increments:
         head["load_factor_reached"] = float(solution.increments[-1].t)
         head["converged_increments"] = len(solution.increments)
+        # increments with points on a switch of a non-smooth law (docs/theory.md §11)
+        head["derivative_switches"] = nonsmooth.summary(solution)
     return head
 
 

@@ -26,8 +26,12 @@ class Increment:
             (equilibrium f_int + f_contact = f_ext + r).
         sens: parameter name -> dw/dphi (n_dof,).
         timing: DDM timings (factorisation, pseudo-load, back-substitution) in s.
-        state: history data after the increment (path-dependent problems).
+        state: history data after the increment (path-dependent problems; None
+            between checkpoints of ``solve(checkpoint=k)``, recomputed on demand).
         state_sens: its sensitivities.
+        switches: points on a switch of the contact or plasticity law
+            (:mod:`signorini.sensitivity.nonsmooth`).
+        factor: the converged tangent's factorisation (``solve(keep_factors=True)``).
     """
 
     t: float
@@ -38,6 +42,8 @@ class Increment:
     timing: dict = field(default_factory=dict)
     state: object = None
     state_sens: object = None
+    switches: dict | None = None
+    factor: object = None
 
 
 class Solution:
@@ -58,6 +64,7 @@ class Solution:
         self.warnings: list[str] = []  # suspicious results found on the way (see signorini.checks)
         self.solver: str | None = None  # linear solver used (``auto`` resolved)
         self.symmetric: bool | None = None  # symmetric factorisation of the tangent?
+        self.shape_gradient = None  # (n_nodes, 2) adjoint gradient to write with the last increment
         self._jp = as_jax(params)
 
     # -------------------------------------------------------------- basics
@@ -140,10 +147,27 @@ class Solution:
         n = range(len(self.increments))[i]
         if n > 0:
             prev = self.increments[n - 1]
-            return prev.state, prev.state_sens
+            return self.state_after(n - 1), prev.state_sens
         m = self.model
         sdot = m.initial_state_sensitivity(self._jp, self.names) if self.names else None
         return m.initial_state(np.zeros(m.n_dof), self._jp), sdot
+
+    def state_after(self, n: int):
+        """History state after increment n (>= 0), replayed by ``model.update`` from
+        the last kept state before it when ``solve(checkpoint=k)`` dropped it."""
+        inc = self.increments[n]
+        if inc.state is not None or not self.model.has_history:
+            return inc.state
+        j = n
+        while j >= 0 and self.increments[j].state is None:
+            j -= 1
+        m = self.model
+        state = (m.initial_state(np.zeros(m.n_dof), self._jp) if j < 0 else
+                 self.increments[j].state)
+        for k in range(j + 1, n + 1):
+            inc_k = self.increments[k]
+            state = m._update(jnp.asarray(inc_k.w), self._jp, inc_k.t, state)
+        return state
 
     # ------------------------------------------------------- sensitivities
     def _check_name(self, name):

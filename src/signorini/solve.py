@@ -18,13 +18,14 @@ import numpy as np
 
 from ._jax import jnp
 from .errors import ConvergenceError, InputError, SingularTangentError
-from .linsolve import REFINE_TOL, TangentSolver, get_solver, openblas_single_thread
+from .linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
 from .model import Model
 from . import checks
 from .newton import NewtonOptions, StepFailure, StepLog, newton
 from .params import as_jax, check_names
 from .progress import SolveProgress
 from .problem import Problem
+from .sensitivity import nonsmooth
 from .sensitivity.ddm import DDM
 from .solution import Increment, Solution
 
@@ -67,7 +68,9 @@ def ddm_for(model: Model, names: Sequence[str]) -> DDM | None:
 
 def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
           options: NewtonOptions = NewtonOptions(), solver="auto", label: str | None = None,
-          initial=None, ddm_factorization: str = "exact", until: float = 1.0) -> Solution:
+          initial=None, ddm_factorization: str = "exact", until: float = 1.0,
+          checkpoint: int = 1, keep_factors: bool = False,
+          switch_tol: float = nonsmooth.SWITCH_TOL) -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
 
     Args:
@@ -92,6 +95,16 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
         until: stop the load path at this load factor (the increments keep the
             nominal size 1/steps); a coarse-to-fine start solves the coarse meshes
             only to the end of the first increment.
+        checkpoint: keep the history state (friction slip, plastic state) after
+            every ``checkpoint``-th increment and after the last one only; the
+            others are recomputed from the stored unknowns when asked for
+            (:meth:`~signorini.solution.Solution.state_before`): memory for long
+            paths, used by the adjoint (docs/theory.md §11).
+        keep_factors: keep the factorisation of the converged tangent of every
+            increment on it (``Increment.factor``) for an adjoint backward pass.
+        switch_tol: relative distance from a switch of the contact or plasticity
+            law below which a point is reported on it (``Increment.switches``,
+            :mod:`signorini.sensitivity.nonsmooth`).
 
     Returns:
         A :class:`~signorini.solution.Solution` with every converged increment;
@@ -105,13 +118,18 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     """
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"steps must be a positive integer (number of load increments), got {steps!r}")
+    if isinstance(checkpoint, bool) or not isinstance(checkpoint, (int, np.integer)) or checkpoint < 1:
+        raise InputError(f"checkpoint must be a positive integer (keep every k-th state), got "
+                         f"{checkpoint!r}")
+    if not (isinstance(switch_tol, (int, float)) and 0 <= switch_tol < 1):
+        raise InputError(f"switch_tol must be a number in [0, 1), got {switch_tol!r}")
     with openblas_single_thread():
         return _solve(problem, steps, sensitivities, options, solver, label, initial,
-                      ddm_factorization, until)
+                      ddm_factorization, until, int(checkpoint), bool(keep_factors), switch_tol)
 
 
 def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_factorization,
-           until):
+           until, checkpoint, keep_factors, switch_tol):
     if not (isinstance(until, (int, float)) and 0.0 < until <= 1.0):
         raise InputError(f"until must be a load factor in (0, 1], got {until!r}")
     if ddm_factorization not in ("exact", "reuse"):
@@ -138,6 +156,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     sol.solver = lin.solver.name
     checks.before_solve(model, params, sol)
     inc_checks = checks.IncrementChecks(model, params, sol)
+    switches = nonsmooth.SwitchDetector(model, params, switch_tol)
     progress = SolveProgress(label, steps)
     w = np.zeros(model.n_dof)
     state_n = model.initial_state(w, params)
@@ -211,6 +230,9 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
             progress.cut(t_new, e.reason, dt)
             continue
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
+        inc.switches = switches(jnp.asarray(w_trial), params, t_new, state_n)
+        if keep_factors:
+            inc.factor = _own_factor(lin, model.pattern.assemble(blocks))
         if ddm is not None:
             t0 = time.perf_counter()
             K = model.pattern.assemble(blocks)
@@ -242,6 +264,8 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
             inc.sens = {n: w_dot[k] for k, n in enumerate(names)}
             inc.timing = timing
         state_n, state_dot = model.update_state(inc, params, t_new, state_n, state_dot, names)
+        if checkpoint > 1 and sol.increments and len(sol.increments) % checkpoint:
+            sol.increments[-1].state = None  # not a checkpoint: recomputed when needed
         sol.increments.append(inc)
         progress.increment(t_new, steplog)
         inc_checks.after(w_trial, t_new, len(sol.increments))
@@ -251,10 +275,21 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         if dt < dt_nominal:
             dt = min(2.0 * dt, dt_nominal)  # grow back after a successful cut increment
     inc_checks.final()
+    message = nonsmooth.warning(sol)
+    if message:
+        checks.warn(sol, message)
     sol.symmetric = lin.symmetric
     sol.status = "converged"
     progress.close("converged")
     return sol
+
+
+def _own_factor(lin: TangentSolver, K):
+    """A factorisation of K that stays valid after later ones (PARDISO keeps one
+    numeric factorisation per handle: a stored one gets a solver of its own)."""
+    if isinstance(lin.solver, Pardiso):
+        return Pardiso().factorize(K, symmetric=bool(lin.symmetric))
+    return lin.factorize(K)
 
 
 def _sensitivity_names(sensitivities) -> list[str]:

@@ -164,6 +164,16 @@ class Coulomb:
         stick = stick | (self._hist(hist)[1] <= 0)
         return jnp.where(closed, jnp.where(stick, STICK, SLIP), OPEN)
 
+    def stick_margin(self, x, lam, A, geo, obstacle, cp, hist):
+        """|lam^_T| - rho of a closed node with a friction DOF and mu > 0 (negative:
+        stick, positive: slip, 0: on the stick/slip switch); inf elsewhere."""
+        s_n, tangential, _ = self._hist(hist)
+        lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
+        closed = lhn <= 0.0
+        rho = -cp["mu"] * jnp.where(closed, lhn, 0.0)
+        on = closed & (tangential > 0) & (cp["mu"] > 0.0)
+        return jnp.where(on, jnp.abs(lht) - rho, jnp.inf)
+
     def slip(self, x, geo, obstacle, hist):
         """Slip increment g_T = s(x) - s_n of the current increment."""
         return obstacle.coordinate(x, geo) - self._hist(hist)[0]

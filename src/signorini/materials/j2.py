@@ -227,6 +227,11 @@ class J2Plasticity:
         bbar_e = jnp.where(plastic, bbar_e, (1.0 + c) * (_I + X))
         return ReturnMap(P=P, tau=tau, h=h, J=J, f_trial=f_tr, dgamma=dgamma, bbar_e=bbar_e)
 
+    def yield_ratio(self, H, h_n, mp):
+        """Trial yield function over the current yield stress, f_tr / (sqrt(2/3)
+        (sigma_y + H alpha_n)): <= 0 elastic step, > 0 plastic, 0 on the switch."""
+        return self.return_map(H, h_n, mp).f_trial / (_SQ23 * (mp["sigma_y"] + mp["H"] * h_n[9]))
+
     def update(self, H, h_n, mp):
         """(P, h): first Piola-Kirchhoff stress and updated history."""
         r = self.return_map(H, h_n, mp)

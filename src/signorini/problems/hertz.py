@@ -158,6 +158,23 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
     )
 
 
+def contact_work(model, surface: int = 0):
+    """Response W(w, params, t) = sum_S A_S p_N,S (g_0,S - g_S): the work of the
+    contact pressure on the closure of the initial gap g_0 (the gap at u = 0).
+    At convergence p_N g = 0, so W = sum_S A_S p_N,S g_0,S: it depends on the
+    pressures and on the reference geometry (shape, obstacle), smoothly on each
+    branch of the contact law. The scalar response of the adjoint runs."""
+    from .._jax import jnp
+
+    zero = jnp.zeros(model.n_dof)
+
+    def work(w, params, t):
+        f = model.contact_fields(w, params, t, surface)
+        g0 = model.contact_fields(zero, params, t, surface)["gap"]
+        return jnp.sum(f["area"] * f["p_N"] * (g0 - f["gap"]))
+    return work
+
+
 def fine_cell_size(problem: Problem) -> float:
     """Smallest top-edge length (the contact resolution)."""
     return problem.mesh.min_edge_length("top")

@@ -1,0 +1,273 @@
+"""Gradient of one scalar response, by DDM, adjoint or finite differences
+(docs/theory.md §11).
+
+:func:`gradient` is the single entry point: the same response, parameters and
+load path in all three modes, one result type (:class:`Gradient`). The DDM
+costs one back-substitution per parameter and increment, the adjoint one
+transposed solve per increment whatever the number of parameters (including
+``"nodes"``, every nodal coordinate), finite differences two solves per
+parameter (for checking).
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._jax import jax, jnp
+from . import checks
+from .errors import InputError
+from .model import NODES
+from .newton import NewtonOptions
+from .params import as_jax, check_names
+from .sensitivity import nonsmooth
+from .sensitivity.adjoint import Adjoint
+from .solve import model_for, solve
+
+MODES = ("ddm", "adjoint", "fd")
+
+
+@dataclass
+class Gradient:
+    """A response value and its gradient.
+
+    Attributes:
+        value: G (sum over the selected increments).
+        grad: name -> dG/dphi (a float; for ``"nodes"`` an (n_nodes, 2) array).
+        mode: ``"ddm"``, ``"adjoint"`` or ``"fd"``.
+        solution: the forward :class:`~signorini.solution.Solution` (nominal values).
+        timing: seconds: ``forward`` (the solve), ``gradient`` (DDM part of the solve,
+            backward pass or perturbed solves) and details of the backward pass.
+        memory: bytes kept for the backward pass: ``per_increment`` (unknowns and
+            states, averaged) and ``factors`` (number of stored factorisations).
+        warnings: the solve's warnings (among them one-sided derivatives).
+    """
+
+    value: float
+    grad: dict
+    mode: str
+    solution: object = None
+    timing: dict = field(default_factory=dict)
+    memory: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+    def __getitem__(self, name):
+        return self.grad[name]
+
+    def as_array(self, names: Sequence[str] | None = None) -> np.ndarray:
+        """The scalar gradients in the order of ``names`` (default: all but ``"nodes"``)."""
+        names = [n for n in self.grad if n != NODES] if names is None else list(names)
+        return np.array([float(self.grad[n]) for n in names])
+
+
+def is_factory(fn) -> bool:
+    """A callable with exactly one required positional parameter is a factory G(model) -> fn."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return False
+    pos = [p for p in sig.parameters.values() if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+           and p.default is p.empty]
+    var = any(p.kind is p.VAR_POSITIONAL for p in sig.parameters.values())
+    return len(pos) == 1 and not var
+
+
+def with_state(fn: Callable) -> Callable:
+    """``fn(w, params, t[, state_n])`` as a function of four arguments."""
+    try:
+        n = len([p for p in inspect.signature(fn).parameters.values()
+                 if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty])
+    except (TypeError, ValueError):
+        n = 4
+    if n == 3:
+        return lambda w, p, t, s: fn(w, p, t)
+    return fn
+
+
+def response_function(response, model) -> Callable:
+    """The traceable fn(w, params, t, state_n) of a response or response factory."""
+    if not callable(response):
+        raise InputError("response must be a callable fn(w, params, t[, state_n]) returning a "
+                         "scalar, or a factory G(model) -> fn")
+    fn = response(model) if is_factory(response) else response
+    if not callable(fn):
+        raise InputError("the response factory must return a callable fn(w, params, t[, state_n])")
+    return with_state(fn)
+
+
+def selected_increments(increments, n: int) -> list[int]:
+    """Indices of the increments whose responses are summed."""
+    if increments == "last":
+        return [n - 1]
+    if increments == "all":
+        return list(range(n))
+    try:
+        idx = sorted({range(n)[int(i)] for i in increments})
+    except (TypeError, ValueError, IndexError):
+        raise InputError(f"increments must be 'last', 'all' or a list of increment indices in "
+                         f"0..{n - 1}, got {increments!r}") from None
+    if not idx:
+        raise InputError("increments selects no increment")
+    return idx
+
+
+def gradient(problem, response, params: Sequence[str], *, mode: str = "adjoint", steps: int = 1,
+             increments="last", options: NewtonOptions = NewtonOptions(), solver="auto",
+             fd_step: float = 1e-6, factors: str = "recompute", checkpoint: int = 1,
+             label: str | None = None, solution=None) -> Gradient:
+    """Gradient of G = sum over increments of response(w_n, params, t_n, state_{n-1}).
+
+    Args:
+        problem: the :class:`~signorini.problem.Problem` at the design point.
+        response: ``fn(w, params, t)`` or ``fn(w, params, t, state_n)`` returning a
+            scalar (JAX-traceable; state_n: the state before the increment), or a
+            factory ``G(model) -> fn``.
+        params: parameter names; ``"nodes"`` (adjoint only) asks for the gradient
+            with respect to every nodal coordinate of the reference mesh.
+        mode: ``"adjoint"`` (default; one backward pass), ``"ddm"`` (one
+            back-substitution per parameter and increment) or ``"fd"`` (central
+            differences, two solves per parameter, step ``fd_step * max(|phi|, 1)``).
+        steps: load increments (as :func:`signorini.solve`).
+        increments: ``"last"`` (default), ``"all"`` (sum over every increment) or
+            a list of increment indices.
+        factors: adjoint: ``"recompute"`` (default: the backward pass factorises
+            each increment's converged tangent again; memory: unknowns and states
+            only) or ``"store"`` (the forward pass keeps every factorisation).
+        checkpoint: adjoint: keep the history state of every k-th increment only
+            (the others are recomputed from the unknowns in the backward pass).
+        solution: adjoint: a converged solution of this problem to run the backward
+            pass on (no forward solve; it must hold every increment's state or
+            be replayable).
+
+    Returns:
+        A :class:`Gradient`.
+    """
+    if mode not in MODES:
+        raise InputError(f"mode must be one of {MODES}, got {mode!r}")
+    if isinstance(params, str):
+        raise InputError(f"params must be a list of parameter names, got the string {params!r}; "
+                         f"write [{params!r}]")
+    names = list(params)
+    if not names:
+        raise InputError("gradient needs at least one parameter name")
+    if len(set(names)) != len(names):
+        raise InputError(f"params lists a parameter twice: {names}")
+    check_names([n for n in names if n != NODES], problem.params, "params")
+    if NODES in names and mode != "adjoint":
+        raise InputError(f"the gradient with respect to {NODES!r} (every nodal coordinate) is "
+                         f"computed by mode='adjoint' only; for a check by finite differences or "
+                         "DDM, move a node with a shape parameter (Problem(shape=...))")
+    if factors not in ("recompute", "store"):
+        raise InputError(f"factors must be 'recompute' or 'store', got {factors!r}")
+    if mode == "adjoint":
+        return _adjoint(problem, response, names, steps, increments, options, solver, factors,
+                        checkpoint, label, solution)
+    if mode == "ddm":
+        return _ddm(problem, response, names, steps, increments, options, solver, label)
+    return _fd(problem, response, names, steps, increments, options, solver, fd_step, label)
+
+
+def _value(sol, fn, idx, key) -> float:
+    return float(sum(np.asarray(sol._evaluate(fn, i, False, key, with_state=True)[0]) for i in idx))
+
+
+def _ddm(problem, response, names, steps, increments, options, solver, label) -> Gradient:
+    t0 = time.perf_counter()
+    sol = solve(problem, steps=steps, sensitivities=names, options=options, solver=solver, label=label)
+    t1 = time.perf_counter()
+    fn = response_function(response, sol.model)
+    idx = selected_increments(increments, len(sol.increments))
+    key = ("gradient", response)
+    G, grad = 0.0, dict.fromkeys(names, 0.0)
+    for i in idx:
+        v, d = sol.history_response(fn, i, key=key)
+        G += float(np.asarray(v))
+        for n in names:
+            grad[n] += float(np.asarray(d[n]))
+    ddm = sum(inc.timing.get("factorization", 0) + inc.timing.get("pseudo_load", 0) +
+              inc.timing.get("back_substitution", 0) for inc in sol.increments)
+    return Gradient(G, grad, "ddm", sol, {"forward": t1 - t0 - ddm, "gradient": ddm +
+                                          time.perf_counter() - t1}, {}, list(sol.warnings))
+
+
+def _fd(problem, response, names, steps, increments, options, solver, fd_step, label) -> Gradient:
+    t0 = time.perf_counter()
+    sol = solve(problem, steps=steps, options=options, solver=solver, label=label)
+    t1 = time.perf_counter()
+    key = ("gradient", response)
+
+    def value(s):
+        fn = response_function(response, s.model)
+        return _value(s, fn, selected_increments(increments, len(s.increments)), key)
+
+    G = value(sol)
+    grad = {}
+    for n in names:
+        base = problem.params[n]
+        h = fd_step * max(abs(base), 1.0)
+        vals = [value(solve(problem.with_params(**{n: base + sgn * h}), steps=steps, options=options,
+                            solver=solver, label=f"FD {n}{'+' if sgn > 0 else '-'}"))
+                for sgn in (1, -1)]
+        grad[n] = (vals[0] - vals[1]) / (2 * h)
+    return Gradient(G, grad, "fd", sol, {"forward": t1 - t0, "gradient": time.perf_counter() - t1},
+                    {}, list(sol.warnings))
+
+
+def _adjoint(problem, response, names, steps, increments, options, solver, factors, checkpoint,
+             label, sol) -> Gradient:
+    t0 = time.perf_counter()
+    if sol is None:
+        sol = solve(problem, steps=steps, options=options, solver=solver, label=label,
+                    checkpoint=checkpoint, keep_factors=factors == "store")
+    elif not sol.increments or sol.status != "converged":
+        raise InputError("the adjoint needs a converged solution (solution.status == 'converged')")
+    t1 = time.perf_counter()
+    G, grad, timing = adjoint_gradient(sol, response, names, increments=increments,
+                                       solver=sol.solver or solver)
+    timing.update({"forward": t1 - t0, "gradient": time.perf_counter() - t1})
+    out = Gradient(G, grad, "adjoint", sol, timing, memory_per_increment(sol), list(sol.warnings))
+    message = nonsmooth.summary(sol) and nonsmooth.warning(_Named(sol, names))
+    if message and message not in out.warnings:
+        checks.warn(sol, message)
+        out.warnings.append(message)
+    return out
+
+
+class _Named:
+    """A solution seen with other sensitivity names (for the one-sided warning)."""
+
+    def __init__(self, sol, names):
+        self.increments, self.names = sol.increments, names
+
+
+def adjoint_gradient(solution, response, names: Sequence[str], *, increments="last", solver="auto"):
+    """(G, {name: dG/dphi}, timings) by one backward pass over a converged solution."""
+    m = solution.model
+    fn = response_function(response, m)
+    key = ("adjoint", response)
+    if key not in m.cache:
+        m.cache[key] = Adjoint(m, fn)
+    adj = m.cache[key]
+    pe = as_jax(solution.params)
+    if NODES in names:
+        pe[NODES] = jnp.zeros((m.n_nodes, 2))
+    idx = selected_increments(increments, len(solution.increments))
+    G, g, timing = adj.backward(solution, pe, idx, solver=solver)
+    grad = {n: (np.asarray(g[n]) if n == NODES else float(g[n])) for n in names}
+    return G, grad, timing
+
+
+def memory_per_increment(solution) -> dict:
+    """Bytes the forward pass keeps per increment for the backward pass (averaged)."""
+    incs = solution.increments
+    size = lambda tree: sum(np.asarray(a).nbytes for a in jax.tree_util.tree_leaves(tree))  # noqa: E731
+    states = sum(size(inc.state) for inc in incs if inc.state is not None)
+    unknowns = sum(inc.w.nbytes for inc in incs)
+    factors = sum(inc.factor is not None for inc in incs)
+    return {"per_increment": (states + unknowns) / max(len(incs), 1),
+            "states_kept": sum(inc.state is not None for inc in incs),
+            "factors_kept": factors}

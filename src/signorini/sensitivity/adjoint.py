@@ -1,0 +1,151 @@
+"""Adjoint gradients of a scalar response along a path-dependent solution
+(docs/theory.md §11).
+
+Increment n solves R_n(w_n, phi, s_{n-1}) = 0 on the free rows, with the
+prescribed unknowns w_n,p = w_p(phi, t_n), and updates the history
+s_n = U(w_n, phi, s_{n-1}) (the state pytree of :class:`~signorini.model.Model`).
+For G = sum_n G_n(w_n, phi, t_n, s_{n-1}) the backward pass runs n = N..1 with
+the cotangent s^_n of the state after increment n (zero after the last one)::
+
+    w^    = dG_n/dw + (dU/dw)^T s^_n                       (response + history, two VJPs)
+    K_ff^T mu = w^_f                                        (transposed exact tangent)
+    (w^_R, phi^_R, s^_R) = (dR/d(w, phi, s_{n-1}))^T c,     c_f = -mu, c_p = 0  (one VJP)
+    phi^ += dG_n/dphi + (dU/dphi)^T s^_n + phi^_R + (dw_p/dphi)^T (w^_p + w^_R,p)
+    s^_{n-1} = dG_n/ds + (dU/ds)^T s^_n + s^_R
+
+and at the end phi^ += (ds_0/dphi)^T s^_0. Every transpose is a JAX VJP of the
+same pure functions the DDM differentiates forward (never written by hand), and
+the friction branch of each node is held as in the converged tangent, so the
+adjoint gradient equals the DDM one to round-off, for any number of parameters:
+``params["nodes"]`` (n_nodes, 2) gives the gradient with respect to every nodal
+coordinate at the cost of the same single backward pass.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .._jax import jax, jnp
+from ..errors import SingularTangentError
+from ..linsolve import TangentSolver, get_solver, openblas_single_thread
+from ..model import NODES
+
+
+def _add(a, b):
+    """Sum of two cotangent pytrees, either of which may be None."""
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return jax.tree_util.tree_map(lambda x, y: x + y, a, b)
+
+
+class Adjoint:
+    """Compiled VJPs of one model for a response ``fn(w, params, t, state_n)``."""
+
+    def __init__(self, model, fn):
+        self.model = m = model
+        self._fn = jax.jit(jax.value_and_grad(fn, argnums=(0, 1, 3)))
+
+        def res_vjp(w, p, t, s, cases, c):
+            return jax.vjp(lambda w_, p_, s_: m.residual(w_, p_, t, s_, cases), w, p, s)[1](c)
+
+        def upd_vjp(w, p, t, s, c):
+            return jax.vjp(lambda w_, p_, s_: m.update(w_, p_, t, s_), w, p, s)[1](c)
+
+        def wp_vjp(p, t, c):
+            return jax.vjp(lambda p_: m.prescribed_values(p_, t), p)[1](c)[0]
+
+        def init_vjp(p, c):
+            return jax.vjp(lambda p_: m.initial_state(jnp.zeros(m.n_dof), p_), p)[1](c)[0]
+
+        self._res_vjp = jax.jit(res_vjp)
+        self._upd_vjp = jax.jit(upd_vjp)
+        self._wp_vjp = jax.jit(wp_vjp)
+        self._init_vjp = jax.jit(init_vjp)
+        self._cases = jax.jit(m.cases)
+
+    def backward(self, solution, params_ext: dict, selected, *, solver="auto", progress=None):
+        """d(sum over ``selected`` increments of G_n)/d(params_ext) by one backward pass.
+
+        Args:
+            solution: a converged :class:`~signorini.solution.Solution` of the model
+                (its increments' unknowns and states; factors if kept).
+            params_ext: the parameter dict (JAX), possibly with ``"nodes"``.
+            selected: increment indices whose G_n enter the sum.
+
+        Returns:
+            (G, gradient pytree like params_ext, timings dict).
+        """
+        m = self.model
+        with openblas_single_thread():
+            return self._backward(solution, params_ext, sorted(set(selected)), solver, progress)
+
+    def _backward(self, sol, pe, selected, solver, progress):
+        m = self.model
+        params = {k: v for k, v in pe.items() if k != NODES}
+        lin = TangentSolver(get_solver(solver), symmetric_candidate=not m.has_history)
+        grad = jax.tree_util.tree_map(jnp.zeros_like, pe)
+        G = 0.0
+        s_bar = None  # cotangent of the state after increment n
+        timing = {"factorization": 0.0, "solve": 0.0, "vjp": 0.0, "increments": 0,
+                  "factorizations": 0}
+        N = len(sol.increments)
+        first = selected[0] if selected else N
+        for n in range(N - 1, -1, -1):
+            if not m.has_history and n < first:
+                break  # without history nothing flows to earlier increments
+            inc = sol.increments[n]
+            t = inc.t
+            w = jnp.asarray(inc.w)
+            s_prev = sol.state_before(n)[0] if m.has_history else None
+            t0 = time.perf_counter()
+            w_bar = jnp.zeros(m.n_dof)
+            s_prev_bar = None
+            if n in selected:
+                g, (gw, gp, gs) = self._fn(w, pe, t, s_prev)
+                G += float(g)
+                w_bar, grad, s_prev_bar = w_bar + gw, _add(grad, gp), gs
+            if s_bar is not None:
+                uw, up, us = self._upd_vjp(w, pe, t, s_prev, s_bar)
+                w_bar, grad, s_prev_bar = w_bar + uw, _add(grad, up), _add(s_prev_bar, us)
+            w_bar = np.asarray(w_bar)
+            t1 = time.perf_counter()
+            timing["vjp"] += t1 - t0
+            if np.any(w_bar[m.free] != 0.0):
+                fac = inc.factor
+                if fac is None:
+                    _, blocks = m.local_tangents(w, params, t, s_prev)
+                    try:
+                        fac = lin.factorize(m.pattern.assemble(blocks))
+                    except SingularTangentError as e:
+                        raise SingularTangentError(
+                            f"the converged tangent at t={t:.6g} is singular, so the adjoint "
+                            f"gradient is undefined: {e}") from None
+                    timing["factorizations"] += 1
+                t2 = time.perf_counter()
+                mu = fac.solve(np.ascontiguousarray(w_bar[m.free]), transpose=True)
+                t3 = time.perf_counter()
+                timing["factorization"] += t2 - t1
+                timing["solve"] += t3 - t2
+                c = np.zeros(m.n_dof)
+                c[m.free] = -mu
+                cases = self._cases(w, pe, t, s_prev) if m.has_contact_history else None
+                rw, rp, rs = self._res_vjp(w, pe, t, s_prev, cases, jnp.asarray(c))
+                w_p_bar = w_bar[m.prescribed] + np.asarray(rw)[m.prescribed]
+                grad, s_prev_bar = _add(grad, rp), _add(s_prev_bar, rs)
+            else:
+                t3 = t1
+                w_p_bar = w_bar[m.prescribed]
+            if m.prescribed.size and np.any(w_p_bar != 0.0):
+                grad = _add(grad, self._wp_vjp(pe, t, jnp.asarray(w_p_bar)))
+            s_bar = s_prev_bar if m.has_history else None
+            timing["vjp"] += time.perf_counter() - t3
+            timing["increments"] += 1
+            if progress is not None:
+                progress(n)
+        if m.has_history and s_bar is not None:
+            grad = _add(grad, self._init_vjp(pe, s_bar))
+        return G, grad, timing

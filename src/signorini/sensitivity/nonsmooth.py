@@ -1,0 +1,105 @@
+"""Where the derivative does not exist: switch points of the non-smooth laws
+(docs/theory.md §11).
+
+The contact and plasticity laws are piecewise smooth: a node is open or
+closed, a closed node sticks or slips, a Gauss point loads elastically or
+plastically. On each branch the solution is differentiable and the DDM and
+the adjoint give its exact derivative. A point that sits *on* a switch is
+where the derivative is only one-sided (the paper, §6): a perturbation of one
+sign changes the branch, the other does not. After every converged increment
+:func:`switches` lists
+
+* weakly active contact nodes: gap and pressure both (nearly) zero,
+  |g| <= tol h and p_N <= tol p_ref (h: mean contact cell, p_ref: the largest
+  pressure of the increment, or eps_N h without contact);
+* stick/slip switch nodes: closed nodes with friction whose tangential trial
+  traction is on the friction disc, ||lam^_T| - rho| <= tol p_ref;
+* elastic/plastic switch points: Gauss points whose trial yield function is on
+  the yield surface, |f_tr| <= tol sqrt(2/3)(sigma_y + H alpha_n);
+
+with ``tol`` = :data:`SWITCH_TOL` by default. :func:`signorini.solve` stores
+the report on every increment (``Increment.switches``) and warns when
+sensitivities were requested and some increment has such points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: relative distance from a switch below which a point is reported as on it
+SWITCH_TOL = 1e-6
+
+
+class SwitchDetector:
+    """Classifies the switch points of one model at converged increments."""
+
+    def __init__(self, model, params, tol: float = SWITCH_TOL):
+        self.model = model
+        self.tol = float(tol)
+        X = np.asarray(model.reference(params))
+        self._h = []
+        self._eps = []
+        for s in model.surfaces:
+            self._h.append(float(np.linalg.norm(X[s.edges[:, 1]] - X[s.edges[:, 0]], axis=1).mean()))
+            vals = s.contact.method.values(params)
+            self._eps.append(float(vals.get("eps_n", vals.get("eps", 0.0))))
+
+    def __call__(self, w, params, t, state_n) -> dict:
+        """{"weakly_active": [[node, ...] per surface], "stick_slip": [[node, ...] per
+        surface], "elastic_plastic": [cell, ...]} at a converged increment (global
+        node numbers; cells with at least one Gauss point on the yield surface)."""
+        m = self.model
+        surf, ratio = m._switch_fields(w, params, t, state_n)
+        surf = [{k: np.asarray(v) for k, v in f.items()} for f in surf]
+        p_max = max((float(np.max(f["p_N"], initial=0.0)) for f in surf), default=0.0)
+        weak, stick = [], []
+        for s, f, h, eps in zip(m.surfaces, surf, self._h, self._eps):
+            p_ref = p_max if p_max > 0 else eps * h
+            on = (np.abs(f["gap"]) <= self.tol * h) & (f["p_N"] <= self.tol * p_ref)
+            weak.append([int(n) for n in s.nodes[on]])
+            edge = np.isfinite(f["stick_margin"]) & (np.abs(f["stick_margin"]) <= self.tol * p_ref)
+            stick.append([int(n) for n in s.nodes[edge & ~on]])
+        plastic = []
+        if ratio is not None:
+            plastic = [int(c) for c in np.nonzero(np.any(np.abs(np.asarray(ratio)) <= self.tol,
+                                                         axis=1))[0]]
+        return {"weakly_active": weak, "stick_slip": stick, "elastic_plastic": plastic}
+
+
+def count(report: dict) -> int:
+    """Number of switch points in one increment's report."""
+    return (sum(len(v) for v in report["weakly_active"]) + sum(len(v) for v in report["stick_slip"])
+            + len(report["elastic_plastic"]))
+
+
+def summary(solution) -> list[dict]:
+    """The increments with switch points, for ``summary.json``: t, increment index
+    and the three lists (empty list: no increment has any)."""
+    out = []
+    for k, inc in enumerate(solution.increments):
+        r = getattr(inc, "switches", None)
+        if r and count(r):
+            out.append({"increment": k + 1, "t": float(inc.t), **r})
+    return out
+
+
+def warning(solution) -> str | None:
+    """The warning of a solve whose sensitivities may be one-sided (None: no switch point)."""
+    rows = summary(solution)
+    if not rows or not solution.names:
+        return None
+    kinds = []
+    for key, what in (("weakly_active", "weakly active contact nodes"),
+                      ("stick_slip", "nodes on the stick/slip switch"),
+                      ("elastic_plastic", "cells with Gauss points on the yield surface")):
+        nodes = sorted({n for r in rows for n in (r[key] if key == "elastic_plastic"
+                                                  else [x for lst in r[key] for x in lst])})
+        if nodes:
+            shown = ", ".join(map(str, nodes[:8])) + (", ..." if len(nodes) > 8 else "")
+            kinds.append(f"{what} [{shown}]")
+    incs = ", ".join(str(r["increment"]) for r in rows[:8]) + (", ..." if len(rows) > 8 else "")
+    return (f"the derivative may be one-sided: {'; '.join(kinds)} in increment(s) {incs} sit on a "
+            "switch of the contact or plasticity law, where the solution is not differentiable "
+            "(a perturbation of one sign changes the branch). The sensitivities are those of the "
+            "branch taken; compare one-sided finite differences if they matter "
+            "(summary.json 'derivative_switches', VTU field 'switch').")

@@ -1,0 +1,207 @@
+"""Adjoint gradients (docs/theory.md §11): equal to the DDM to 1e-10 on
+frictionless and frictional Hertz and on forging, the shape gradient of every
+nodal coordinate against DDM and central differences on 10 nodes, memory
+options (checkpoints, stored factors), and the report of switch points where
+the derivative is one-sided."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+import signorini as sg
+from signorini import io, runner
+from signorini._jax import jnp
+from signorini.contact import AugmentedLagrangian, Contact, Coulomb
+from signorini.errors import InputError
+from signorini.gradient import adjoint_gradient, gradient
+from signorini.loads import Fixed
+from signorini.materials import LinearElastic
+from signorini.mesh import rectangle
+from signorini.obstacles import Circle
+from signorini.problem import Problem
+from signorini.problems import forging, hertz, hertz_friction
+
+TIGHT = sg.NewtonOptions(rtol=1e-11)
+
+
+def with_centre(pb, friction: bool):
+    """The Hertz problem with the obstacle centre as a parameter yc (offset, 0)."""
+    c = pb.contact[0]
+    circle = Circle(radius="R", centre=(0.0, lambda p: p["R"] + p["yc"]))
+    return dataclasses.replace(pb, contact=(Contact(circle, c.edges, c.method),),
+                               params={**pb.params, "yc": 0.0})
+
+
+def rel(a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+@pytest.mark.parametrize("friction", [False, True])
+def test_adjoint_equals_ddm_hertz(friction):
+    if friction:
+        pb = with_centre(hertz_friction.hertz_friction_problem(n_fine=12), True)
+        names, steps, incs = ["R", "E", "mu", "P", "yc"], 4, "all"
+    else:
+        pb = with_centre(hertz.hertz_problem(n_fine=12), False)
+        names, steps, incs = ["R", "E", "P", "yc"], 2, "last"
+    resp = hertz.contact_work
+    d = gradient(pb, resp, names, mode="ddm", steps=steps, increments=incs, options=TIGHT)
+    a = gradient(pb, resp, names, mode="adjoint", steps=steps, increments=incs, options=TIGHT)
+    assert a.value == pytest.approx(d.value, rel=1e-12)
+    for n in names:
+        assert abs(a[n] - d[n]) <= 1e-10 * abs(d[n]), (n, a[n], d[n])
+    # one transposed solve per increment that the response reaches
+    assert a.timing["factorizations"] == (steps if friction else 1)
+
+
+def test_adjoint_equals_ddm_forging_and_memory_options():
+    pb = forging.forging_problem(mesh=(4, 8))
+    resp = lambda m: forging.objective(m, forging.lateral_nodes(pb))  # noqa: E731
+    names = list(forging.TABLE1)
+    kw = dict(steps=6, options=forging.options())
+    d = gradient(pb, resp, names, mode="ddm", **kw)
+    a = gradient(pb, resp, names, mode="adjoint", **kw)
+    c = gradient(pb, resp, names, mode="adjoint", checkpoint=4, factors="store", **kw)
+    assert rel(a.as_array(names), d.as_array(names)) < 1e-10
+    # replayed states and stored factors give the same numbers
+    assert rel(c.as_array(names), a.as_array(names)) < 1e-12
+    assert a.memory["states_kept"] == 6 and c.memory["states_kept"] == 2  # increments 4 and 6
+    assert c.memory["factors_kept"] == 6 and c.timing["factorizations"] == 0
+    assert c.memory["per_increment"] < 0.6 * a.memory["per_increment"]
+
+
+def test_shape_gradient_of_every_node_equals_ddm_and_fd():
+    """dG/dX of all nodes in one backward pass; 10 sampled nodes checked against the
+    DDM of one-hot shape fields (exact) and central differences of two solves."""
+    base = hertz_friction.hertz_friction_problem(n_fine=12)
+    kw = dict(steps=3, increments="all", options=TIGHT)
+    a = gradient(base, hertz.contact_work, ["R", "nodes"], mode="adjoint", **kw)
+    g = a["nodes"]
+    assert g.shape == (base.mesh.nodes.shape[0], 2)
+    top = base.mesh.node_set("top")
+    rng = np.random.default_rng(3)
+    x = base.mesh.nodes
+    near = np.nonzero((np.abs(x[:, 0]) < 1.0) & (x[:, 1] > -0.3))[0]  # where G is sensitive
+    # contact nodes near the centre, but not the one at x = 0: the body is held by
+    # touching the cylinder there at the start (moving it would leave it unsupported)
+    sample = list(top[np.argsort(np.abs(x[top, 0]))[1:6]]) + list(
+        rng.choice(np.setdiff1d(near, top), 5, replace=False))
+    comps = [k % 2 for k in range(10)]
+    shape = {**base.shape}
+    params = dict(base.params)
+    for k, (n, c) in enumerate(zip(sample, comps)):
+        V = np.zeros_like(x)
+        V[n, c] = 1.0
+        shape[f"x{k}"], params[f"x{k}"] = V, 0.0
+    pb = dataclasses.replace(base, shape=shape, params=params,
+                             shape_nominal={**base.shape_nominal, **{f"x{k}": 0.0 for k in range(10)}})
+    names = [f"x{k}" for k in range(10)]
+    d = gradient(pb, hertz.contact_work, names, mode="ddm", **kw)
+    adj = np.array([g[n, c] for n, c in zip(sample, comps)])
+    assert rel(adj, d.as_array(names)) < 1e-10
+    f = gradient(pb, hertz.contact_work, names, mode="fd", fd_step=1e-6, **kw)
+    # central differences of two solves at rtol 1e-11 and step 1e-6: round-off of
+    # about 1e-9 absolute (measured 5e-10 on the interior nodes)
+    err = np.abs(f.as_array(names) - adj)
+    assert np.all(err <= 1e-5 * np.abs(adj) + 2e-9), (adj, f.as_array(names))
+    assert np.sum(np.abs(adj) > 1e-6) >= 5
+
+
+def test_nodes_gradient_of_rigid_translation_is_consistent():
+    """A rigid translation of mesh and obstacle together changes nothing: the
+    x-components of the nodal gradient sum with the obstacle-centre derivative to 0."""
+    pb = with_centre(hertz.hertz_problem(n_fine=12), False)
+    a = gradient(pb, hertz.contact_work, ["nodes", "yc"], mode="adjoint", options=TIGHT)
+    total = a["nodes"][:, 1].sum() + a["yc"]
+    assert abs(total) < 1e-9 * np.abs(a["nodes"][:, 1]).sum()
+
+
+def test_gradient_input_errors():
+    pb = hertz.hertz_problem(n_fine=12)
+    with pytest.raises(InputError, match="mode must be"):
+        gradient(pb, hertz.contact_work, ["R"], mode="backward")
+    with pytest.raises(InputError, match="adjoint"):
+        gradient(pb, hertz.contact_work, ["nodes"], mode="ddm")
+    with pytest.raises(sg.errors.UnknownParameterError, match="Rr"):
+        gradient(pb, hertz.contact_work, ["Rr"])
+    with pytest.raises(InputError, match="factors"):
+        gradient(pb, hertz.contact_work, ["R"], factors="keep")
+    with pytest.raises(InputError, match="increments"):
+        gradient(pb, hertz.contact_work, ["R"], increments=[5])
+    with pytest.raises(InputError, match="reserved"):
+        dataclasses.replace(pb, params={**pb.params, "nodes": 1.0})
+    with pytest.raises(InputError, match="checkpoint"):
+        sg.solve(pb, checkpoint=0)
+
+
+def touching_block(yc: float = 0.0):
+    """A block fixed at its base, unloaded, a cylinder touching exactly the top
+    node at x = 1: that node is on the edge of the contact zone (g = 0, p = 0)."""
+    mesh = rectangle(np.linspace(0.0, 2.0, 9), np.linspace(-1.0, 0.0, 5))
+    return Problem(mesh=mesh, material=LinearElastic(), params={"E": 100.0, "nu": 0.3, "R": 1.0,
+                                                                 "yc": yc, "eps": 400.0},
+                   fixed=(Fixed("bottom", 0), Fixed("bottom", 1)),
+                   contact=(Contact(Circle(radius="R", centre=(1.0, lambda p: p["R"] + p["yc"])), "top",
+                                    AugmentedLagrangian("eps")),))
+
+
+def test_weakly_active_node_is_reported_and_derivative_is_one_sided(tmp_path):
+    pb = touching_block()
+    node = int(np.argmin(np.abs(pb.mesh.nodes[:, 0] - 1.0) + np.abs(pb.mesh.nodes[:, 1])))
+    with pytest.warns(sg.errors.SignoriniWarning, match="one-sided"):
+        sol = sg.solve(pb, steps=2, sensitivities=["yc"])
+    for inc in sol.increments:
+        assert inc.switches["weakly_active"] == [[node]]
+    summary = runner.summary_header("converged", sol)
+    assert [r["weakly_active"] for r in summary["derivative_switches"]] == [[[node]], [[node]]]
+    assert any("weakly active contact nodes [%d]" % node in w for w in summary["warnings"])
+    json.dumps(summary)
+    mesh = __import__("meshio").read(io.write_vtu(sol, tmp_path / "s.vtu"))
+    sw = mesh.point_data["switch"]
+    assert sw[node] == 1 and np.count_nonzero(sw) == 1
+    # the derivative is one-sided there: moving the cylinder into the block makes
+    # contact, moving it away does not
+    pressure = lambda s: s.contact()["p_N"].sum()  # noqa: E731
+    h = 1e-4
+    up = (pressure(sg.solve(touching_block(h))) - pressure(sol)) / h
+    down = (pressure(sol) - pressure(sg.solve(touching_block(-h)))) / h
+    assert up == 0.0 and down < -1.0
+    ddm = sol.contact()["dp_N_dyc"].sum()
+    assert ddm == pytest.approx(down, rel=1e-6)  # the closed branch (closed at zero)
+    # the adjoint warns the same way
+    with pytest.warns(sg.errors.SignoriniWarning, match="one-sided"):
+        a = gradient(pb, lambda m: lambda w, p, t: m.contact_fields(w, p, t, 0)["p_N"].sum(), ["yc"])
+    assert a["yc"] == pytest.approx(ddm, rel=1e-10)
+
+
+def test_no_switch_points_in_a_clear_hertz_contact():
+    sol = sg.solve(hertz.hertz_problem(n_fine=12), sensitivities=["R"])
+    assert all(sum(map(len, inc.switches["weakly_active"])) == 0 for inc in sol.increments)
+    assert not any("one-sided" in w for w in sol.warnings)
+
+
+def test_transposed_solves_match_superlu():
+    """K^T x = b by every backend, checked against SciPy's SuperLU, on a frictional
+    tangent (unsymmetric) with PARDISO's kept analysis from another tangent."""
+    from signorini.linsolve import available, get_solver
+    import scipy.sparse.linalg as spla
+
+    pb = hertz_friction.hertz_friction_problem(n_fine=12)
+    sol = sg.solve(pb, steps=3, options=TIGHT, solver="superlu")
+    m = sol.model
+    Ks = []
+    for i in (0, 2):
+        inc = sol.increments[i]
+        _, blocks = m.local_tangents(jnp.asarray(inc.w), sol._jp, inc.t, sol.state_before(i)[0])
+        Ks.append(m.pattern.assemble(blocks))
+    b = np.random.default_rng(0).standard_normal(Ks[0].shape[0])
+    ref = spla.splu(Ks[1].tocsc()).solve(b, trans="T")
+    for name in available():
+        s = get_solver(name)
+        s.factorize(Ks[0])
+        f = s.factorize(Ks[1])  # a kept analysis: values of another active set
+        x = f.solve(b, transpose=True)
+        assert rel(x, ref) < 1e-10, name
