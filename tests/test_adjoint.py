@@ -66,6 +66,11 @@ def test_adjoint_equals_ddm_forging_and_memory_options():
     a = gradient(pb, resp, names, mode="adjoint", **kw)
     c = gradient(pb, resp, names, mode="adjoint", checkpoint=4, factors="store", **kw)
     assert rel(a.as_array(names), d.as_array(names)) < 1e-10
+    # the nodal shape gradient along a design velocity is that parameter's derivative
+    a_nodes = gradient(pb, resp, ["nodes"], mode="adjoint", **kw)["nodes"]
+    for k in range(5):
+        dk = float(np.sum(a_nodes * pb.shape[f"phi{k}"]))
+        assert abs(dk - d[f"phi{k}"]) <= 1e-10 * abs(d[f"phi{k}"])
     # replayed states and stored factors give the same numbers
     assert rel(c.as_array(names), a.as_array(names)) < 1e-12
     assert a.memory["states_kept"] == 6 and c.memory["states_kept"] == 2  # increments 4 and 6
@@ -205,3 +210,34 @@ def test_transposed_solves_match_superlu():
         f = s.factorize(Ks[1])  # a kept analysis: values of another active set
         x = f.solve(b, transpose=True)
         assert rel(x, ref) < 1e-10, name
+
+
+def test_optimisation_objective_with_adjoint_gradient():
+    """The optimisation interface takes either mode: same value and gradient."""
+    from signorini.optimize import Objective
+
+    pb = forging.forging_problem(mesh=(2, 4))
+    names = ["phi0", "phi2", "mu"]
+    resp = lambda m: forging.objective(m, forging.lateral_nodes(pb))  # noqa: E731
+    x = np.array([0.72, 0.69, 0.25])
+    evs = [Objective(pb, names, resp, steps=4, options=forging.options(), gradient_mode=mode).evaluate(x)
+           for mode in ("ddm", "adjoint")]
+    assert evs[1].F == evs[0].F
+    assert rel(evs[1].grad, evs[0].grad) < 1e-10
+
+
+def test_cli_adjoint_next_to_ddm(tmp_path):
+    from signorini.cli import main
+
+    main(["forging", "--out", str(tmp_path), "--mesh", "2x4", "--steps", "4", "--no-fd", "--adjoint"])
+    s = json.loads((tmp_path / "summary.json").read_text())
+    a = s["adjoint"]
+    assert set(a["adjoint"]) == set(forging.TABLE1)
+    assert max(a["adjoint_vs_ddm_rel_diff"].values()) < 1e-10
+    assert a["ddm"] == s["dF_ddm"]
+    rows = np.genfromtxt(tmp_path / "shape_gradient.csv", delimiter=",", names=True)
+    pb = forging.forging_problem(mesh=(2, 4))
+    g = np.column_stack([rows["dG_dX"], rows["dG_dY"]])
+    assert abs(np.sum(g * pb.shape["phi4"]) - a["adjoint"]["phi4"]) <= 1e-9 * abs(a["adjoint"]["phi4"])
+    mesh = __import__("meshio").read(sorted(tmp_path.glob("forging_*.vtu"))[-1])
+    assert np.allclose(mesh.point_data["adjoint_shape_gradient"][:, :2], g)

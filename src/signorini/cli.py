@@ -154,6 +154,14 @@ def _dask_options(p):
                    help="workers of the local cluster (default: the number of cores)")
 
 
+def _adjoint_option(p, response: str):
+    p.add_argument("--adjoint", action="store_true",
+                   help=f"also compute the adjoint gradient of {response} (one backward pass "
+                        "over the increments) with respect to the same parameters and every "
+                        "nodal coordinate; written next to the DDM gradient in summary.json "
+                        "('adjoint'), shape_gradient.csv and the VTU field adjoint_shape_gradient")
+
+
 def _coarse_start_option(p):
     p.add_argument("--no-coarse-start", action="store_true",
                    help="start the first increment's Newton from the undeformed state instead of "
@@ -218,6 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     _common(f, FRICTION_SET, 30, "number of load increments, a multiple of 3 (P1 = P/3, P2 = 2P/3 "
             "and P3 = P must be increments)", _a0("hertz_friction"), block=80.0)
     _coarse_start_option(f)
+    _adjoint_option(f, "the contact work W = sum A p_N (g0 - g) at P")
 
     fg = sub.add_parser(
         "forging", formatter_class=fmt,
@@ -236,6 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     _forging_mesh_options(fg)
     fg.add_argument("--no-fd", action="store_true",
                     help="skip the central-difference check (14 re-solves of the whole path)")
+    _adjoint_option(fg, "F")
     _solver_options(fg)
 
     o = sub.add_parser(
@@ -256,8 +266,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scipy.optimize method (L-BFGS-B, SLSQP: bounds phi >= 0.05)")
     o.add_argument("--gtol", type=_positive_float, default=1e-6, help="gradient tolerance")
     o.add_argument("--maxiter", type=_positive_int, default=50, help="iterations per mu")
-    o.add_argument("--gradient", default="ddm", choices=["ddm", "fd"],
-                   help="DDM (exact, one solve per design) or central differences (11 solves)")
+    o.add_argument("--gradient", default="ddm", choices=["ddm", "adjoint", "fd"],
+                   help="DDM (exact, one solve with 5 sensitivities per design), adjoint (exact, "
+                        "one solve and one backward pass per design) or central differences "
+                        "(11 solves)")
     o.add_argument("--resume", action="store_true",
                    help="continue from the best point of each mu's history.csv in --out")
     _dask_options(o)
@@ -361,6 +373,17 @@ def _fmt_coarse(levels) -> str:
         f"{lv['dofs']} DOFs: {sum(lv['newton_iterations'])} it" for lv in levels) + ")"
 
 
+def _print_adjoint(s):
+    a = s.get("adjoint")
+    if not isinstance(a, dict):
+        return
+    print(f"adjoint gradient of {a['response']}: value {a['value']:.6g}, one backward pass in "
+          f"{a['time_backward_s']:.2f} s (shape gradient of all nodes in shape_gradient.csv)")
+    print(f"{'parameter':>10} {'DDM':>14} {'adjoint':>14} {'rel. diff.':>10}")
+    for n, d in a["ddm"].items():
+        print(f"{n:>10} {d:14.6e} {a['adjoint'][n]:14.6e} {a['adjoint_vs_ddm_rel_diff'][n]:10.1e}")
+
+
 def _fmt_fd(d) -> str:
     if not isinstance(d, dict):
         return "not computed (--no-fd)"
@@ -389,18 +412,21 @@ def _dispatch(args) -> int:
         s = hertz_friction.run(args.out, params, refine=args.refine, steps=args.steps,
                                fd_check=not args.no_fd, solver=args.solver, size=args.block,
                                zone=args.zone_width, finite_strain=args.finite_strain,
-                               force_size=args.force_size, coarse_start=not args.no_coarse_start)
+                               force_size=args.force_size, coarse_start=not args.no_coarse_start,
+                               adjoint=args.adjoint)
         ca = ", ".join(f"{lv['c_over_a']:.3f} [{lv['c_over_a_bracket'][0]:.3f}, "
                        f"{lv['c_over_a_bracket'][1]:.3f}]" for lv in s["loads"])
         print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
               f"c/a at P1, P2, P3 = {ca}; Newton iterations {sum(s['newton_iterations'])} "
               f"in total; DDM vs FD at P3 (max rel. diff.): {_fmt_fd(s['ddm_vs_fd_rel_diff_P3'])}")
+        _print_adjoint(s)
     elif args.command == "forging":
         from .problems import forging
 
         params = parse_sets(args.set, FORGING_SET)
         s = forging.run(args.out, params, mesh=forging.parse_mesh(args.mesh), steps=args.steps,
-                        fd_check=not args.no_fd, solver=args.solver, force_size=args.force_size)
+                        fd_check=not args.no_fd, solver=args.solver, force_size=args.force_size,
+                        adjoint=args.adjoint)
         print(f"forging ({s['mesh']['dofs']} DOFs, {s['steps']} increments, mu = "
               f"{s['params']['mu']:g}): F = {s['F']:.6g}, max |r - h0| / h0 = "
               f"{s['max_rel_deviation_from_r_opt']:.4f}, die force {s['die_force_final']:.5g}, "
@@ -410,6 +436,7 @@ def _dispatch(args) -> int:
             fd = s["dF_fd"][n] if isinstance(s["dF_fd"], dict) else float("nan")
             rel = s["ddm_vs_fd_rel_diff"][n] if isinstance(s["ddm_vs_fd_rel_diff"], dict) else float("nan")
             print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
+        _print_adjoint(s)
     elif args.command == "optimise-forging":
         from .problems import forging, forging_opt
 

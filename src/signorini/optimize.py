@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import inspect
 import itertools
 import logging
 import math
@@ -68,6 +67,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConvergenceError, InputError, SignoriniWarning
+from .gradient import adjoint_gradient, is_factory
 from .newton import NewtonOptions
 from .params import check_names
 from .solve import solve
@@ -129,18 +129,6 @@ class Evaluation:
         return float(np.linalg.norm(self.grad)) if self.grad is not None else math.nan
 
 
-def _is_factory(fn) -> bool:
-    """A callable with exactly one positional parameter is a factory G(model) -> fn."""
-    try:
-        sig = inspect.signature(fn)
-    except (TypeError, ValueError):
-        return False
-    pos = [p for p in sig.parameters.values()
-           if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
-    var = any(p.kind is p.VAR_POSITIONAL for p in sig.parameters.values())
-    return len(pos) == 1 and not var
-
-
 class _OncePerMessage(logging.Filter):
     """Drop log records whose message was already logged during this optimisation."""
 
@@ -176,7 +164,9 @@ class Objective:
         response_key: key under which the compiled response is cached on the
             model (default: a key unique to this objective).
         increment: which converged increment the response is evaluated at (-1: the last).
-        gradient_mode: ``"ddm"`` (one solve with sensitivities per point) or ``"fd"``
+        gradient_mode: ``"ddm"`` (one solve with sensitivities per point), ``"adjoint"``
+            (one solve and one backward pass per point, whatever the number of
+            design parameters: :func:`signorini.gradient.gradient`) or ``"fd"``
             (central differences of the value: 1 + 2 len(names) solves per gradient).
         fd_step: relative step of ``"fd"``: h_i = fd_step * max(|x_i|, 1).
         failure: ``"penalty"`` (return ``F_fail`` and a gradient pointing back to the
@@ -211,8 +201,8 @@ class Objective:
         if len(set(self.names)) != len(self.names):
             raise InputError(f"names lists a parameter twice: {self.names}")
         check_names(self.names, problem.params, "the design parameters (names)")
-        if gradient_mode not in ("ddm", "fd"):
-            raise InputError(f"gradient_mode must be 'ddm' or 'fd', got {gradient_mode!r}")
+        if gradient_mode not in ("ddm", "adjoint", "fd"):
+            raise InputError(f"gradient_mode must be 'ddm', 'adjoint' or 'fd', got {gradient_mode!r}")
         if failure not in ("penalty", "raise"):
             raise InputError(f"failure must be 'penalty' or 'raise', got {failure!r}")
         if failure_value is not None and not np.isfinite(failure_value):
@@ -223,7 +213,7 @@ class Objective:
             raise InputError("response must be a callable: fn(w, params, t) or a factory G(model) -> fn")
         self.problem = problem
         self.response = response
-        self.factory = _is_factory(response) if factory is None else bool(factory)
+        self.factory = is_factory(response) if factory is None else bool(factory)
         self.steps = steps
         self.options = options if options is not None else NewtonOptions()
         self.solver = solver
@@ -259,7 +249,7 @@ class Objective:
         """DF/Dx: the DDM gradient of the evaluation at x (``"fd"``: central differences)."""
         x = self._point(x)
         ev = self.evaluate(x)
-        if self.gradient_mode == "ddm" or not ev.ok:
+        if self.gradient_mode != "fd" or not ev.ok:
             return ev.grad.copy() if ev.grad is not None else np.zeros(len(self.names))
         k = x.tobytes()
         if k not in self._grads:
@@ -282,8 +272,8 @@ class Objective:
         k = x.tobytes()
         ev = self._cache.get(k)
         if ev is None:
-            kind = "value+gradient" if self.gradient_mode == "ddm" else "value"
-            ev = self._solve(x, with_grad=self.gradient_mode == "ddm", kind=kind)
+            kind = "value+gradient" if self.gradient_mode != "fd" else "value"
+            ev = self._solve(x, with_grad=self.gradient_mode != "fd", kind=kind)
         return ev
 
     def lookup(self, x, rtol: float = 1e-13) -> Evaluation | None:
@@ -330,7 +320,7 @@ class Objective:
         x = self._point(x)
         sol = self._solutions.get(x.tobytes())
         if sol is None:
-            self._solve(x, with_grad=self.gradient_mode == "ddm", kind="final", keep=True)
+            self._solve(x, with_grad=self.gradient_mode != "fd", kind="final", keep=True)
             sol = self._solutions.get(x.tobytes())
             if sol is None:
                 rec = self.records[-1]
@@ -398,7 +388,8 @@ class Objective:
                 if self.validate is not None:
                     self.validate({**self.problem.params, **pvals})
                 pb = self.problem.with_params(**pvals)
-                sol = solve(pb, steps=self.steps, sensitivities=names if with_grad else (),
+                ddm = with_grad and self.gradient_mode == "ddm"
+                sol = solve(pb, steps=self.steps, sensitivities=names if ddm else (),
                             options=self.options, solver=self.solver, label=self.label)
             except ConvergenceError as e:
                 status, reason, err = "failed", str(e), e
@@ -415,8 +406,11 @@ class Objective:
                 n_inc = len(sol.increments)
                 cuts = sum(not s.converged for s in sol.log)
                 warns = list(sol.warnings)
-                val, dv = sol.response(self._fn(sol.model), self.increment, with_sensitivities=with_grad,
+                val, dv = sol.response(self._fn(sol.model), self.increment, with_sensitivities=ddm,
                                        key=self.key)
+                if with_grad and not ddm:  # adjoint: one backward pass for all names
+                    dv = adjoint_gradient(sol, self._fn(sol.model), names,
+                                          increments=[self.increment], solver=sol.solver)[1]
                 if np.size(val) != 1:
                     raise InputError("the response must return a scalar, got an array of shape "
                                      f"{np.shape(val)}")

@@ -193,7 +193,7 @@ def body_volume(model, x) -> float:
 
 def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         fd_check: bool = True, solver="auto", force_size: bool = False, rtol: float = 1e-11,
-        fd_step: float = 1e-6) -> dict:
+        fd_step: float = 1e-6, adjoint: bool = False) -> dict:
     """Upset the billet with DDM sensitivities of the objective F (eq. 24) and write results.
 
     Writes into ``out``: ``summary.json`` (F, DF/Dphi_k, DF/Dmu, DF/Dsigma_y by DDM
@@ -204,9 +204,14 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     deformed mesh, plastic strain); ``force.png`` (die force against stroke);
     ``forging.pvd`` with one VTU per increment. Returns the summary. On a Newton
     failure the converged increments and a ``failed`` summary are written first.
+    ``adjoint``: also the adjoint gradient of F with respect to the same
+    parameters and every nodal coordinate, next to the DDM one (``summary.json``
+    ``adjoint``, ``shape_gradient.csv``, VTU field ``adjoint_shape_gradient`` on
+    the last increment).
     """
     from .. import io, plots
-    from ..runner import Timer, prepare_output, solve_or_report, summary_header, use_solver
+    from ..runner import (Timer, adjoint_report, prepare_output, solve_or_report, summary_header,
+                          use_solver)
     from ..sensitivity import finite_difference
 
     clock = Timer()
@@ -228,6 +233,11 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     F_fn = objective(model, lat)
     F, dF = sol.response(F_fn, key=("forging-objective",))
     dF = {k: float(val) for k, val in dF.items()}
+    adj = None
+    if adjoint:
+        adj = adjoint_report(out, sol, lambda m: objective(m, lat), names,
+                             "F = sum (r_k - r_opt)^2 over the lateral nodes (forging.objective)",
+                             solver, dF)
     force_fn = die_force(model)
     force = [float(sol.response(force_fn, k, with_sensitivities=False, key=("die-force",))[0])
              for k in range(len(sol.increments))]
@@ -270,6 +280,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "dF_ddm": dF,
         "dF_fd": fd if fd_check else "not computed (--no-fd)",
         "ddm_vs_fd_rel_diff": rel if fd_check else "not computed (--no-fd)",
+        "adjoint": adj if adjoint else "not computed (use --adjoint)",
         "fd_step": {n: fd_step * max(abs(v[n]), 1.0) for n in names},
         "lateral_radii_final": (x[lat, 0]).tolist(),
         "max_rel_deviation_from_r_opt": float(np.max(np.abs(x[lat, 0] - H0)) / H0),

@@ -144,7 +144,7 @@ def load_increments(solution) -> list[int]:
 def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd_check: bool = True,
         sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="auto",
         size: float = BLOCK, zone: float = 1.5, finite_strain: bool = False,
-        force_size: bool = False, coarse_start: bool = True) -> dict:
+        force_size: bool = False, coarse_start: bool = True, adjoint: bool = False) -> dict:
     """Solve the frictional Hertz benchmark with path-dependent DDM sensitivities.
 
     Writes ``contact_P{1,2,3}.csv`` (``x_ref, x, p_N, p_T, dp_N_d<name>,
@@ -156,11 +156,16 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     h = ``fd_step`` max(|phi|, 1): smaller steps are limited by the Newton
     tolerance (error ~ rtol / h), much larger ones change stick/slip states.
     On a Newton failure the converged increments and ``summary.json`` (status
-    ``failed``) are written before the error is re-raised.
+    ``failed``) are written before the error is re-raised. ``adjoint``: also the
+    adjoint gradient of the contact work W at P (:func:`hertz.contact_work`) with
+    respect to the sensitivity parameters and every nodal coordinate, next to its
+    DDM gradient (``summary.json`` ``adjoint``, ``shape_gradient.csv``, VTU field
+    ``adjoint_shape_gradient`` in ``hertz_friction_P3.vtu``).
     """
     from .. import io, plots
     from ..newton import NewtonOptions
-    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
+    from ..runner import (Timer, adjoint_report, max_rel_diff, prepare_output, solve_or_report,
+                          summary_header, use_solver)
     from ..sensitivity import finite_difference
 
     clock = Timer()
@@ -189,6 +194,14 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
                           sensitivities=sensitivities, options=options, solver=solver,
                           initial=initial)
     t_solve = clock() - t0
+
+    adj = None
+    if adjoint:
+        work = hertz.contact_work(sol.model)
+        _, dW = sol.history_response(lambda w, p, t, s: work(w, p, t), key=("contact-work",))
+        adj = adjoint_report(out, sol, hertz.contact_work, sensitivities,
+                             "contact work W = sum A p_N (g0 - g) at P (hertz.contact_work)", solver,
+                             {n: float(d) for n, d in dW.items()})
 
     levels = []
     for i, k in enumerate(load_increments(sol), start=1):
@@ -244,6 +257,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "newton_iterations": sol.newton_iterations,
         "newton_residuals": [inc.newton.residuals for inc in sol.increments],
         "ddm_vs_fd_rel_diff_P3": ddm_fd if fd_check else "not computed (--no-fd)",
+        "adjoint": adj if adjoint else "not computed (use --adjoint)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,
         "time_wall_s": clock(),
