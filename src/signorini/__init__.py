@@ -21,6 +21,7 @@ from .problem import Problem
 from .sensitivity import finite_difference
 from .solution import Solution
 from .solve import solve
+from .gradient import Gradient, gradient
 from . import io  # noqa: E402  (read_mesh, write_vtu, ...)
 
 __version__ = "0.1.0"
@@ -30,5 +31,5 @@ __all__ = [
     "InvertedElementError", "LinearElastic", "Line", "Mesh", "NeoHooke", "NewtonOptions",
     "Penalty", "Pressure", "Problem", "ResourceError", "SignoriniError", "SignoriniWarning", "SingularTangentError", "Solution",
     "SolverError", "Traction", "UnknownParameterError", "equivalent_areas", "finite_difference",
-    "graded_coordinates", "rectangle", "solve",
+    "graded_coordinates", "rectangle", "solve", "gradient", "Gradient",
 ]
