@@ -13,9 +13,9 @@ import pytest
 import signorini as sg
 from signorini import io, runner
 from signorini._jax import jnp
-from signorini.contact import AugmentedLagrangian, Contact, Coulomb
+from signorini.contact import AugmentedLagrangian, Contact
 from signorini.errors import InputError
-from signorini.gradient import adjoint_gradient, gradient
+from signorini.gradient import gradient
 from signorini.loads import Fixed
 from signorini.materials import LinearElastic
 from signorini.mesh import rectangle
@@ -26,7 +26,7 @@ from signorini.problems import forging, hertz, hertz_friction
 TIGHT = sg.NewtonOptions(rtol=1e-11)
 
 
-def with_centre(pb, friction: bool):
+def with_centre(pb):
     """The Hertz problem with the obstacle centre as a parameter yc (offset, 0)."""
     c = pb.contact[0]
     circle = Circle(radius="R", centre=(0.0, lambda p: p["R"] + p["yc"]))
@@ -42,10 +42,10 @@ def rel(a, b):
 @pytest.mark.parametrize("friction", [False, True])
 def test_adjoint_equals_ddm_hertz(friction):
     if friction:
-        pb = with_centre(hertz_friction.hertz_friction_problem(n_fine=12), True)
+        pb = with_centre(hertz_friction.hertz_friction_problem(n_fine=12))
         names, steps, incs = ["R", "E", "mu", "P", "yc"], 4, "all"
     else:
-        pb = with_centre(hertz.hertz_problem(n_fine=12), False)
+        pb = with_centre(hertz.hertz_problem(n_fine=12))
         names, steps, incs = ["R", "E", "P", "yc"], 2, "last"
     resp = hertz.contact_work
     d = gradient(pb, resp, names, mode="ddm", steps=steps, increments=incs, options=TIGHT)
@@ -118,7 +118,7 @@ def test_shape_gradient_of_every_node_equals_ddm_and_fd():
 def test_nodes_gradient_of_rigid_translation_is_consistent():
     """A rigid translation of mesh and obstacle together changes nothing: the
     x-components of the nodal gradient sum with the obstacle-centre derivative to 0."""
-    pb = with_centre(hertz.hertz_problem(n_fine=12), False)
+    pb = with_centre(hertz.hertz_problem(n_fine=12))
     a = gradient(pb, hertz.contact_work, ["nodes", "yc"], mode="adjoint", options=TIGHT)
     total = a["nodes"][:, 1].sum() + a["yc"]
     assert abs(total) < 1e-9 * np.abs(a["nodes"][:, 1]).sum()

@@ -26,7 +26,7 @@ from .newton import NewtonOptions
 from .params import as_jax, check_names
 from .sensitivity import nonsmooth
 from .sensitivity.adjoint import Adjoint
-from .solve import model_for, solve
+from .solve import solve
 
 MODES = ("ddm", "adjoint", "fd")
 

@@ -23,6 +23,7 @@ coordinate at the cost of the same single backward pass.
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -31,6 +32,8 @@ from .._jax import jax, jnp
 from ..errors import SingularTangentError
 from ..linsolve import TangentSolver, get_solver, openblas_single_thread
 from ..model import NODES
+
+log = logging.getLogger("signorini")
 
 
 def _add(a, b):
@@ -79,7 +82,6 @@ class Adjoint:
         Returns:
             (G, gradient pytree like params_ext, timings dict).
         """
-        m = self.model
         with openblas_single_thread():
             return self._backward(solution, params_ext, sorted(set(selected)), solver, progress)
 
@@ -144,8 +146,11 @@ class Adjoint:
             s_bar = s_prev_bar if m.has_history else None
             timing["vjp"] += time.perf_counter() - t3
             timing["increments"] += 1
+            log.debug("adjoint: increment %d (t = %.4g) done", n + 1, t)
             if progress is not None:
                 progress(n)
         if m.has_history and s_bar is not None:
             grad = _add(grad, self._init_vjp(pe, s_bar))
+        log.info("adjoint: backward pass over %d increment(s), %d factorisation(s)",
+                 timing["increments"], timing["factorizations"])
         return G, grad, timing
