@@ -49,7 +49,10 @@ def test_adjoint_equals_ddm_hertz(friction):
         names, steps, incs = ["R", "E", "P", "yc"], 2, "last"
     resp = hertz.contact_work
     d = gradient(pb, resp, names, mode="ddm", steps=steps, increments=incs, options=TIGHT)
-    a = gradient(pb, resp, names, mode="adjoint", steps=steps, increments=incs, options=TIGHT)
+    # the backward pass on the same converged path (a new solve would converge to the
+    # same point only to rtol, which the ill-conditioned frictional tangent amplifies)
+    a = gradient(pb, resp, names, mode="adjoint", steps=steps, increments=incs, options=TIGHT,
+                 solution=d.solution)
     assert a.value == pytest.approx(d.value, rel=1e-12)
     for n in names:
         assert abs(a[n] - d[n]) <= 1e-10 * abs(d[n]), (n, a[n], d[n])
