@@ -44,8 +44,9 @@ the fastest run kept, so **compile time is excluded**. Columns:
   componentwise, |adjoint - DDM| / max(|DDM|, 1e-3 max |DDM|); at "all nodes"
   the adjoint's ``grad["nodes"]`` at the one-hot nodes against the DDM of
   those one-hot parameters in the 50 row (another process, same path);
-* ``load1``: the 1-minute load average around the process (2 cores: above ~1.2
-  another process competed for the CPU, and the times are contended).
+* ``other_cpu``: CPU cores used by other processes during the timed runs
+  (machine busy time minus this process's; the larger of the two processes):
+  on 2 cores, much above 0.1 means the times are contended.
 
 Memory table (``adjoint_memory.csv``): the all-nodes adjoint in three
 configurations, each in its own process (one run, not warmed: the peak is that
@@ -93,6 +94,34 @@ MEMORY_CONFIGS = {"default": {}, "checkpoint=5": {"checkpoint": 5}, "factors=sto
 
 def rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+class OtherCpu:
+    """CPU cores used by *other* processes over an interval: busy time of the
+    machine (/proc/stat) minus this process's own CPU time, over the wall time
+    (the load average is no measure here: it counts this process's own threads)."""
+
+    def __init__(self):
+        self.t0, self.busy0, self.own0 = time.perf_counter(), self._busy(), self._own()
+
+    @staticmethod
+    def _busy() -> float:
+        try:
+            with open("/proc/stat") as f:
+                v = [int(x) for x in f.readline().split()[1:]]
+        except OSError:
+            return float("nan")
+        idle = v[3] + (v[4] if len(v) > 4 else 0)
+        return (sum(v[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+    @staticmethod
+    def _own() -> float:
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        return r.ru_utime + r.ru_stime
+
+    def cores(self) -> float:
+        wall = time.perf_counter() - self.t0
+        return max(0.0, (self._busy() - self.busy0 - (self._own() - self.own0)) / wall)
 
 
 # ------------------------------------------------------------------ problems
@@ -167,9 +196,11 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
         g = gradient(pb, response, names, mode=mode, increments=increments, solver=solver, **opts)
         return time.perf_counter() - t0, g
 
-    load = os.getloadavg()[0]
+    other = None
     best_fwd = best = None
     for k in range(1 + repeat):  # the first run of each compiles; the others are timed
+        if k == 1:
+            other = OtherCpu()
         gc.collect()
         t_fwd, sol = forward()
         its = sum(sol.newton_iterations)
@@ -187,7 +218,7 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
            "newton_its": its, "forward_s": t_fwd, "gradient_wall_s": t_wall,
            "timing": {k: v for k, v in g.timing.items() if isinstance(v, (int, float))},
            "memory": g.memory, "value": g.value, "peak_rss_MB": rss_mb(),
-           "load1": max(load, os.getloadavg()[0]),
+           "other_cpu": other.cores() if other else float("nan"),
            "warnings": [w[:120] for w in g.warnings],
            "grad": {n: float(v) for n, v in g.grad.items() if n != "nodes"},
            "one_hot": extra}
@@ -203,7 +234,7 @@ def measure_memory(name: str, config: str, small: bool, solver: str, out: str) -
     from signorini.gradient import gradient
 
     pb, response, kw = setup(name, small)
-    before = rss_mb()
+    before, other = rss_mb(), OtherCpu()
     t0 = time.perf_counter()
     g = gradient(pb, response, ["nodes"], mode="adjoint", solver=solver, **kw, **MEMORY_CONFIGS[config])
     wall = time.perf_counter() - t0
@@ -214,7 +245,7 @@ def measure_memory(name: str, config: str, small: bool, solver: str, out: str) -
             "states_kept": g.memory["states_kept"], "factors_kept": g.memory["factors_kept"],
             "rss_before_MB": before, "peak_rss_MB": rss_mb(), "forward_s": g.timing["forward"],
             "backward_s": g.timing["gradient"], "factorizations": g.timing["factorizations"],
-            "wall_s_with_jit": wall}
+            "wall_s_with_jit": wall, "other_cpu": other.cores()}
 
 
 def subprocess_row(args: list[str]) -> dict:
@@ -275,7 +306,8 @@ def table_rows(name: str, runs: dict) -> tuple[list[dict], dict]:
                 row["note"] = f"values differ: {a['value']!r} {d['value']!r}"
         row["peak_rss_adjoint_MB"] = a["peak_rss_MB"]
         row["adj_factorizations"] = a["timing"].get("factorizations")
-        row["load1"] = max(a["load1"], d["load1"]) if d else a["load1"]
+        row["warnings"] = len(a["warnings"]) + (len(d["warnings"]) if d else 0)
+        row["other_cpu"] = max(a["other_cpu"], d["other_cpu"]) if d else a["other_cpu"]
         row["_n"] = n
         rows.append(row)
     summary = {"problem": name}
@@ -315,6 +347,7 @@ def main():
     ap.add_argument("--problems", default="hertz,forging")
     ap.add_argument("--counts", default=",".join(COUNTS))
     ap.add_argument("--no-memory", action="store_true", help="skip the memory configurations")
+    ap.add_argument("--memory-only", action="store_true", help="only the memory configurations")
     ap.add_argument("--solver", default="auto")
     ap.add_argument("--repeat", type=int, default=2, help="timed runs after the compiling one (fastest kept)")
     ap.add_argument("--one", nargs=3, metavar=("PROBLEM", "COUNT", "MODE"), help=argparse.SUPPRESS)
@@ -334,7 +367,7 @@ def main():
     rows, summaries, mem_rows = [], [], []
     for name in args.problems.split(","):
         runs = {}
-        for count in counts:
+        for count in ([] if args.memory_only else counts):
             for mode in ("ddm", "adjoint"):
                 if mode == "ddm" and count == "nodes":
                     continue
@@ -344,12 +377,13 @@ def main():
                 runs[(mode, count)] = r
                 msg = r.get("error", "")[-300:] or (
                     f"gradient {r['timing']['gradient']:.3f} s, forward {r['forward_s']:.3f} s, "
-                    f"{r['dofs']} DOFs")
+                    f"{r['dofs']} DOFs, other processes {r['other_cpu']:.2f} cores")
                 print(f"{name} {count:>5s} {mode:7s}: {msg} ({time.perf_counter() - t0:.0f} s for the run)",
                       flush=True)
-        r, s = table_rows(name, runs)
-        rows += r
-        summaries.append(s)
+        if runs:
+            r, s = table_rows(name, runs)
+            rows += r
+            summaries.append(s)
         if not args.no_memory:
             with tempfile.TemporaryDirectory() as tmp:
                 grads = {}
@@ -367,9 +401,10 @@ def main():
                     mem_rows.append(m)
                     print(f"{name} memory {config}: done", flush=True)
 
-    print("\nTiming: second run in each process (JIT compile time excluded); seconds; "
-          "DDM at 'nodes' extrapolated (a + b n) when ddm_extrapolated is True")
-    report(rows, RESULTS / f"adjoint{suffix}.csv", width=10)
+    print(f"\nTiming, seconds: fastest of {args.repeat} runs after a compiling one in each process "
+          "(JIT compile time excluded); DDM at 'nodes' extrapolated (a + b n) where ddm_extrapolated")
+    if rows:
+        report(rows, RESULTS / f"adjoint{suffix}.csv", width=10)
     for r in rows:
         if str(r.get("params", "")).startswith("nodes") and "backward_over_forward" in r:
             v = r["backward_over_forward"]

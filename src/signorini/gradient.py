@@ -230,18 +230,11 @@ def _adjoint(problem, response, names, steps, increments, options, solver, facto
                                        solver=sol.solver or solver)
     timing.update({"forward": t1 - t0, "gradient": time.perf_counter() - t1})
     out = Gradient(G, grad, "adjoint", sol, timing, memory_per_increment(sol), list(sol.warnings))
-    message = nonsmooth.summary(sol) and nonsmooth.warning(_Named(sol, names))
+    message = nonsmooth.warning(sol, names)
     if message and message not in out.warnings:
         checks.warn(sol, message)
         out.warnings.append(message)
     return out
-
-
-class _Named:
-    """A solution seen with other sensitivity names (for the one-sided warning)."""
-
-    def __init__(self, sol, names):
-        self.increments, self.names = sol.increments, names
 
 
 def adjoint_gradient(solution, response, names: Sequence[str], *, increments="last", solver="auto"):

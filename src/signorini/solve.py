@@ -232,19 +232,25 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
         inc.switches = switches(jnp.asarray(w_trial), params, t_new, state_n)
         if keep_factors:
-            inc.factor = _own_factor(lin, model.pattern.assemble(blocks))
+            try:
+                inc.factor = _own_factor(lin, model.pattern.assemble(blocks))
+            except SingularTangentError as e:
+                raise fail(f"the converged tangent at t={t_new:.6g} is singular, so no adjoint "
+                           f"can be computed: {e}") from None
         if ddm is not None:
             t0 = time.perf_counter()
             K = model.pattern.assemble(blocks)
-            reused = ddm_factorization == "reuse" and last_fac is not None
-            fac = last_fac.refined_for(K) if reused else None
-            w_dot = None
+            fac = inc.factor  # kept for an adjoint (keep_factors): the DDM uses it as well
+            reused = fac is None and ddm_factorization == "reuse" and last_fac is not None
             if reused:
                 # the last Newton factor preconditions refinement against the exact K;
                 # kept only if the sensitivities reach the backward error of a fresh solve
+                fac = last_fac.refined_for(K)
+            w_dot = None
+            if fac is not None:
                 t1 = time.perf_counter()
                 w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot)
-                if fac.backward_error > REFINE_TOL:
+                if reused and fac.backward_error > REFINE_TOL:
                     w_dot, reused = None, False
             if w_dot is None:
                 try:

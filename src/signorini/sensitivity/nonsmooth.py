@@ -83,10 +83,11 @@ def summary(solution) -> list[dict]:
     return out
 
 
-def warning(solution) -> str | None:
-    """The warning of a solve whose sensitivities may be one-sided (None: no switch point)."""
+def warning(solution, names=None) -> str | None:
+    """The warning of a solve whose sensitivities (``names``, default the solve's own)
+    may be one-sided (None: no switch point or no sensitivity asked for)."""
     rows = summary(solution)
-    if not rows or not solution.names:
+    if not rows or not (solution.names if names is None else names):
         return None
     kinds = []
     for key, what in (("weakly_active", "weakly active contact nodes"),
