@@ -38,12 +38,19 @@ the fastest run kept, so **compile time is excluded**. Columns:
   pass alone), ``adjoint_forward_s`` its forward solve (``timing["forward"]``);
 * ``backward_over_forward`` = adjoint_backward_s / forward_s, ``ddm_over_forward``
   = ddm_s / forward_ddm_s;
-* ``peak_rss_ddm_MB``, ``peak_rss_adjoint_MB``: ``ru_maxrss`` of each process;
-* ``max_rel_diff``: max over the common scalar parameters of |adjoint - DDM|
-  / max |DDM| (the measure of tests/test_adjoint.py); ``max_comp_rel_diff``
-  componentwise, |adjoint - DDM| / max(|DDM|, 1e-3 max |DDM|); at "all nodes"
-  the adjoint's ``grad["nodes"]`` at the one-hot nodes against the DDM of
-  those one-hot parameters in the 50 row (another process, same path);
+* ``peak_rss_ddm_MB``, ``peak_rss_adjoint_MB``: ``ru_maxrss`` of each process
+  (at 50 it includes the model's cost of the one-hot design velocity fields:
+  measured 1.33 GB against 0.71 GB for a plain solve of the 60k Hertz model);
+* checks that the numbers are those of the same gradient. In the DDM's
+  process, after its peak RSS is read, the adjoint runs on the DDM's own
+  converged solution (``gradient(..., solution=...)``): ``max_rel_diff`` = max
+  over the scalar parameters of |adjoint - DDM| / max |DDM| (the measure of
+  tests/test_adjoint.py), ``max_comp_rel_diff`` componentwise
+  (|adjoint - DDM| / max(|DDM|, 1e-3 max |DDM|)), ``value_rel_diff`` of G;
+  ``nodes_rel_diff``: ``grad["nodes"]`` at the one-hot nodes against the DDM
+  of the one-hot parameters (50 row: same solution; "all nodes" row: the timed
+  all-nodes adjoint against the 50 row's DDM); ``xproc_rel_diff``: the timed
+  adjoint against the timed DDM (two processes, two solves);
 * ``other_cpu``: CPU cores used by other processes during the timed runs
   (machine busy time minus this process's; the larger of the two processes):
   on 2 cores, much above 0.1 means the times are contended.
@@ -56,9 +63,15 @@ importing and building the problem): default (``factors="recompute"``,
 ``memory["per_increment"]``, states and factors kept, forward and backward
 times, and the relative difference of the nodal gradient from the default one.
 
+After the tables: whether the all-nodes backward pass costs at most 2 forward
+solves, and the crossover count n at which the adjoint becomes cheaper than the
+DDM, from straight-line fits a + b n over 1, 5, 50 of DDM ``timing["gradient"]``
+against the adjoint backward pass, and of the wall times over the plain solve.
+
     python benchmarks/bench_adjoint.py --small          # ~5k-DOF Hertz, a few minutes
     python benchmarks/bench_adjoint.py                  # ~60k-DOF Hertz, longer
-        [--problems hertz,forging] [--counts 1,5,50,nodes] [--no-memory] [--solver auto]
+        [--problems hertz,forging] [--counts 1,5,50,nodes] [--repeat 2] [--no-memory | --memory-only]
+        [--solver auto]
 
 Writes benchmarks/results/adjoint.csv and adjoint_memory.csv (``--small``:
 adjoint_small.csv and adjoint_memory_small.csv).
@@ -153,7 +166,8 @@ def one_hot(name: str, pb, k: int) -> list[tuple[int, int]]:
 
 
 def with_parameters(name: str, pb, count: int):
-    """(problem, names): the first ``count`` own names, then one-hot nodal shape parameters."""
+    """(problem, names, [(node, component)] of the one-hot parameters): the first
+    ``count`` own names, then one-hot nodal shape parameters x0, x1, ..."""
     import dataclasses
 
     own = OWN[name][:count]
@@ -196,11 +210,12 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
         g = gradient(pb, response, names, mode=mode, increments=increments, solver=solver, **opts)
         return time.perf_counter() - t0, g
 
-    other = None
+    other, g = None, None
     best_fwd = best = None
     for k in range(1 + repeat):  # the first run of each compiles; the others are timed
         if k == 1:
             other = OtherCpu()
+        del g  # one solution alive at a time (peak RSS)
         gc.collect()
         t_fwd, sol = forward()
         its = sum(sol.newton_iterations)
@@ -209,14 +224,11 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
         t_wall, g = grad()
         if k and (best_fwd is None or t_fwd < best_fwd):
             best_fwd = t_fwd
-        if k and (best is None or g.timing["gradient"] < best[1].timing["gradient"]):
-            best = (t_wall, g)
-        del g
-    t_fwd, (t_wall, g) = best_fwd, best
+        if k and (best is None or g.timing["gradient"] < best[1]["gradient"]):
+            best = (t_wall, {k_: v for k_, v in g.timing.items() if isinstance(v, (int, float))})
     row = {"problem": name, "count": count, "mode": mode, "dofs": int(g.solution.model.n_dof),
            "n_nodes": int(pb.mesh.nodes.shape[0]), "increments": len(g.solution.increments),
-           "newton_its": its, "forward_s": t_fwd, "gradient_wall_s": t_wall,
-           "timing": {k: v for k, v in g.timing.items() if isinstance(v, (int, float))},
+           "newton_its": its, "forward_s": best_fwd, "gradient_wall_s": best[0], "timing": best[1],
            "memory": g.memory, "value": g.value, "peak_rss_MB": rss_mb(),
            "other_cpu": other.cores() if other else float("nan"),
            "warnings": [w[:120] for w in g.warnings],
@@ -226,6 +238,15 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
         # the nodal gradient at the nodes the 50-parameter rows move (for the check)
         ref = one_hot(name, pb, 50 - len(OWN[name]))
         row["nodes_at_one_hot"] = [float(g["nodes"][n, c]) for n, c in ref]
+    if mode == "ddm":
+        # check (after the peak RSS is read): the adjoint on the DDM's own converged
+        # solution, for the same names and, with one-hot parameters, every nodal
+        # coordinate (its entries at the one-hot nodes are their DDM derivatives)
+        chk = gradient(pb, response, names + (["nodes"] if extra else []), mode="adjoint",
+                       increments=increments, solver=solver, solution=g.solution, **opts)
+        row["check_value"] = chk.value
+        row["check_grad"] = {n: float(v) for n, v in chk.grad.items() if n != "nodes"}
+        row["check_nodes"] = [float(chk["nodes"][n, c]) for n, c in extra]
     return row
 
 
@@ -277,7 +298,7 @@ def rel_diff(a: dict, d: dict) -> tuple[float, float]:
 def table_rows(name: str, runs: dict) -> tuple[list[dict], dict]:
     """Rows of the timing table for one problem and the crossover summary."""
     rows = []
-    measured = {}  # count -> (ddm_s) for the fit
+    measured, wall = {}, {}  # n -> DDM timing["gradient"]; n -> (DDM, adjoint) wall minus plain solve
     for count in [c for c in COUNTS if ("adjoint", c) in runs or ("ddm", c) in runs]:
         a, d = runs.get(("adjoint", count)), runs.get(("ddm", count))
         if a and "error" in a:
@@ -291,6 +312,7 @@ def table_rows(name: str, runs: dict) -> tuple[list[dict], dict]:
                "forward_s": a["forward_s"]}
         if d:
             measured[n] = d["timing"]["gradient"]
+            wall[n] = (d["gradient_wall_s"] - d["forward_s"], a["gradient_wall_s"] - a["forward_s"])
             row.update({"forward_ddm_s": d["forward_s"], "ddm_s": d["timing"]["gradient"],
                         "ddm_extrapolated": False,
                         "ddm_fwd_part_s": d["timing"]["forward"],
@@ -301,9 +323,15 @@ def table_rows(name: str, runs: dict) -> tuple[list[dict], dict]:
         if d:
             row["ddm_over_forward"] = d["timing"]["gradient"] / d["forward_s"]
             row["peak_rss_ddm_MB"] = d["peak_rss_MB"]
-            row["max_rel_diff"], row["max_comp_rel_diff"] = rel_diff(a["grad"], d["grad"])
-            if abs(a["value"] - d["value"]) > 1e-12 * abs(d["value"]):
-                row["note"] = f"values differ: {a['value']!r} {d['value']!r}"
+            # adjoint on the DDM's solution against the DDM (same converged path)
+            row["max_rel_diff"], row["max_comp_rel_diff"] = rel_diff(d["check_grad"], d["grad"])
+            row["value_rel_diff"] = abs(d["check_value"] - d["value"]) / abs(d["value"])
+            if d["check_nodes"]:
+                k = len(d["check_nodes"])
+                row["nodes_rel_diff"] = rel_diff({f"x{i}": v for i, v in enumerate(d["check_nodes"])},
+                                                 {f"x{i}": d["grad"][f"x{i}"] for i in range(k)})[0]
+            # the timed adjoint (its own process and solve) against the DDM
+            row["xproc_rel_diff"] = rel_diff(a["grad"], d["grad"])[0]
         row["peak_rss_adjoint_MB"] = a["peak_rss_MB"]
         row["adj_factorizations"] = a["timing"].get("factorizations")
         row["warnings"] = len(a["warnings"]) + (len(d["warnings"]) if d else 0)
@@ -320,11 +348,16 @@ def table_rows(name: str, runs: dict) -> tuple[list[dict], dict]:
                 t = A + B * row["_n"]
                 row.update({"ddm_s": t, "ddm_extrapolated": True,
                             "ddm_over_forward": t / row["forward_s"]})
-        adj = [(r["_n"], r["adjoint_backward_s"]) for r in rows if "_n" in r and r["ddm_extrapolated"] is False]
+        adj = [(r["_n"], r["adjoint_backward_s"]) for r in rows if "_n" in r and r.get("ddm_extrapolated") is False]
         if len(adj) >= 2:
             C, D = fit(*zip(*adj))
             summary["adjoint_fit"] = (C, D)
             summary["crossover"] = (C - A) / (B - D) if B > D else float("inf")
+        # the same from wall times (gradient() minus the plain solve in the same process):
+        # counts the DDM's history-sensitivity update and the adjoint's extra forward work
+        (A2, B2), (C2, D2) = fit(ns, [wall[n][0] for n in ns]), fit(ns, [wall[n][1] for n in ns])
+        summary["wall_fits"] = (A2, B2, C2, D2)
+        summary["crossover_wall"] = (C2 - A2) / (B2 - D2) if B2 > D2 else float("inf")
     nodes = runs.get(("adjoint", "nodes"))
     d50 = runs.get(("ddm", "50"))
     for row in rows:
@@ -333,11 +366,32 @@ def table_rows(name: str, runs: dict) -> tuple[list[dict], dict]:
             k = len(OWN[name])
             ddm = {f"x{i}": d50["grad"][f"x{i}"] for i in range(len(nodes["nodes_at_one_hot"]))}
             adj = {f"x{i}": v for i, v in enumerate(nodes["nodes_at_one_hot"])}
-            row["max_rel_diff"], row["max_comp_rel_diff"] = rel_diff(adj, ddm)
+            row["nodes_rel_diff"] = row["xproc_rel_diff"] = rel_diff(adj, ddm)[0]
             assert len(ddm) == 50 - k
     for row in rows:
         row.pop("_n", None)
     return rows, summary
+
+
+def compact(rows: list[dict], repeat: int) -> None:
+    """The key columns of the timing table (the CSV has them all)."""
+    cols = [("problem", "problem", "s"), ("params", "params", "s"), ("forward_s", "forward s", ".3f"),
+            ("ddm_s", "DDM s", ".3f"), ("adjoint_backward_s", "adj. bwd s", ".3f"),
+            ("backward_over_forward", "bwd/fwd", ".2f"), ("ddm_over_forward", "DDM/fwd", ".2f"),
+            ("peak_rss_ddm_MB", "RSS DDM MB", ".0f"), ("peak_rss_adjoint_MB", "RSS adj MB", ".0f"),
+            ("max_rel_diff", "adj-DDM rel", ".1e"), ("other_cpu", "other cpu", ".2f")]
+    print(f"\nSummary (seconds after JIT, fastest of {repeat}; DDM s marked * = extrapolated, not run)")
+    print(" | ".join(f"{h:>12s}" for _, h, _ in cols))
+    for r in rows:
+        out = []
+        for k, _, fmt in cols:
+            v = r.get(k, "")
+            txt = format(v, fmt) if isinstance(v, (int, float)) and not isinstance(v, bool) and fmt != "s" \
+                else str(v)
+            if k == "ddm_s" and r.get("ddm_extrapolated"):
+                txt = format(v, ".4g") + "*"
+            out.append(f"{txt:>12s}")
+        print(" | ".join(out))
 
 
 # ---------------------------------------------------------------------- main
@@ -401,10 +455,11 @@ def main():
                     mem_rows.append(m)
                     print(f"{name} memory {config}: done", flush=True)
 
-    print(f"\nTiming, seconds: fastest of {args.repeat} runs after a compiling one in each process "
-          "(JIT compile time excluded); DDM at 'nodes' extrapolated (a + b n) where ddm_extrapolated")
     if rows:
+        print(f"\nTiming, seconds: fastest of {args.repeat} runs after a compiling one in each process "
+              "(JIT compile time excluded); DDM at 'nodes' extrapolated (a + b n) where ddm_extrapolated")
         report(rows, RESULTS / f"adjoint{suffix}.csv", width=10)
+        compact(rows, args.repeat)
     for r in rows:
         if str(r.get("params", "")).startswith("nodes") and "backward_over_forward" in r:
             v = r["backward_over_forward"]
@@ -415,6 +470,10 @@ def main():
             (A, B), (C, D) = s["ddm_fit"], s["adjoint_fit"]
             print(f"{s['problem']}: DDM gradient {A:.3g} + {B:.3g} n s, adjoint backward {C:.3g} + "
                   f"{D:.3g} n s -> adjoint cheaper above n = {s['crossover']:.2f} parameters")
+            A2, B2, C2, D2 = s["wall_fits"]
+            print(f"{s['problem']}: by wall time over the plain solve: DDM {A2:.3g} + {B2:.3g} n s, "
+                  f"adjoint {C2:.3g} + {D2:.3g} n s -> adjoint cheaper above n = "
+                  f"{s['crossover_wall']:.2f} parameters")
     if mem_rows:
         print("\nMemory of the all-nodes adjoint (one run per process, JIT included)")
         report(mem_rows, RESULTS / f"adjoint_memory{suffix}.csv", width=10)
