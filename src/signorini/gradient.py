@@ -29,6 +29,8 @@ from .sensitivity.adjoint import Adjoint
 from .solve import solve
 
 MODES = ("ddm", "adjoint", "fd")
+#: compiled adjoints kept per model (one per response object)
+MAX_CACHED = 8
 
 
 @dataclass
@@ -40,10 +42,15 @@ class Gradient:
         grad: name -> dG/dphi (a float; for ``"nodes"`` an (n_nodes, 2) array).
         mode: ``"ddm"``, ``"adjoint"`` or ``"fd"``.
         solution: the forward :class:`~signorini.solution.Solution` (nominal values).
-        timing: seconds: ``forward`` (the solve), ``gradient`` (DDM part of the solve,
-            backward pass or perturbed solves) and details of the backward pass.
-        memory: bytes kept for the backward pass: ``per_increment`` (unknowns and
-            states, averaged) and ``factors`` (number of stored factorisations).
+        timing: seconds: ``forward`` (the solve), ``gradient`` (the DDM's share of the
+            solve — factorisation, pseudo-loads, back-substitutions, history
+            sensitivities —, the backward pass, or the perturbed solves) and, for the
+            adjoint, ``tangent_factorization`` (kernels, assembly and factorisation of
+            the converged tangents), ``solve``, ``vjp``, ``factorizations``.
+        memory: adjoint: bytes kept for the backward pass per increment
+            (``per_increment``: unknowns, states and stored factors, averaged;
+            ``factors_per_increment``: the stored factors alone), ``states_kept`` and
+            ``factors_kept`` (how many increments keep them).
         warnings: the solve's warnings (among them one-sided derivatives).
     """
 
@@ -189,7 +196,8 @@ def _ddm(problem, response, names, steps, increments, options, solver, label) ->
         for n in names:
             grad[n] += float(np.asarray(d[n]))
     ddm = sum(inc.timing.get("factorization", 0) + inc.timing.get("pseudo_load", 0) +
-              inc.timing.get("back_substitution", 0) for inc in sol.increments)
+              inc.timing.get("back_substitution", 0) + inc.timing.get("history_sensitivity", 0)
+              for inc in sol.increments)
     return Gradient(G, grad, "ddm", sol, {"forward": t1 - t0 - ddm, "gradient": ddm +
                                           time.perf_counter() - t1}, {}, list(sol.warnings))
 
@@ -223,8 +231,8 @@ def _adjoint(problem, response, names, steps, increments, options, solver, facto
     if sol is None:
         sol = solve(problem, steps=steps, options=options, solver=solver, label=label,
                     checkpoint=checkpoint, keep_factors=factors == "store")
-    elif not sol.increments or sol.status != "converged":
-        raise InputError("the adjoint needs a converged solution (solution.status == 'converged')")
+    else:
+        _check_solution(sol, problem, steps)
     t1 = time.perf_counter()
     G, grad, timing = adjoint_gradient(sol, response, names, increments=increments,
                                        solver=sol.solver or solver)
@@ -237,6 +245,20 @@ def _adjoint(problem, response, names, steps, increments, options, solver, facto
     return out
 
 
+def _check_solution(sol, problem, steps) -> None:
+    """A solution given to the adjoint must be a converged solve of this problem."""
+    if getattr(sol, "status", None) != "converged" or not sol.increments:
+        raise InputError("the adjoint needs a converged solution (solution.status == 'converged')")
+    if sol.model.problem.mesh is not problem.mesh or dict(sol.params) != dict(problem.params):
+        raise InputError("solution= must be a solve of this problem (same mesh and parameter "
+                         "values); solve it again or pass the problem it was solved for")
+    if abs(sol.increments[-1].t - 1.0) > 1e-12:
+        raise InputError(f"solution= ends at t = {sol.increments[-1].t:.6g}, not at the end of "
+                         "the load path")
+    if len(sol.increments) < steps:
+        raise InputError(f"solution= has {len(sol.increments)} increments, fewer than steps={steps}")
+
+
 def adjoint_gradient(solution, response, names: Sequence[str], *, increments="last", solver="auto"):
     """(G, {name: dG/dphi}, timings) by one backward pass over a converged solution."""
     m = solution.model
@@ -244,6 +266,9 @@ def adjoint_gradient(solution, response, names: Sequence[str], *, increments="la
     key = ("adjoint", response)
     if key not in m.cache:
         m.cache[key] = Adjoint(m, fn)
+        old = [k for k in m.cache if isinstance(k, tuple) and k and k[0] == "adjoint"]
+        for k in old[:-MAX_CACHED]:  # a new response object per call must not grow the cache
+            del m.cache[k]
     adj = m.cache[key]
     pe = as_jax(solution.params)
     if NODES in names:
@@ -258,9 +283,12 @@ def memory_per_increment(solution) -> dict:
     """Bytes the forward pass keeps per increment for the backward pass (averaged)."""
     incs = solution.increments
     size = lambda tree: sum(np.asarray(a).nbytes for a in jax.tree_util.tree_leaves(tree))  # noqa: E731
-    states = sum(size(inc.state) for inc in incs if inc.state is not None)
+    # the unknowns in a state are inc.w itself (shared, counted once)
+    states = sum(size([a for a in jax.tree_util.tree_leaves(inc.state) if a is not inc.w])
+                 for inc in incs if inc.state is not None)
     unknowns = sum(inc.w.nbytes for inc in incs)
     factors = sum(inc.factor is not None for inc in incs)
-    return {"per_increment": (states + unknowns) / max(len(incs), 1),
-            "states_kept": sum(inc.state is not None for inc in incs),
-            "factors_kept": factors}
+    fbytes = sum(inc.factor.nbytes or 0 for inc in incs if inc.factor is not None)
+    n = max(len(incs), 1)
+    return {"per_increment": (states + unknowns + fbytes) / n, "factors_per_increment": fbytes / n,
+            "states_kept": sum(inc.state is not None for inc in incs), "factors_kept": factors}

@@ -63,6 +63,7 @@ class Factor:
         self._norm = {}
         self.refinements = 0  # refinement back-substitutions done so far
         self.backward_error = 0.0  # of the last solve (worst column)
+        self.nbytes: int | None = None  # memory of the factors, where the solver reports it
 
     def _backward_error(self, r, x, b, transpose=False) -> float:
         """Row-wise normwise backward error max_i |r_i| / (max_j |K_ij| ||x|| + |b_i|).
@@ -164,7 +165,9 @@ class SuperLU(LinearSolver):
                 lu = spla.splu(A, permc_spec="COLAMD")
         except RuntimeError as e:  # "Factor is exactly singular"
             raise SingularTangentError(f"SuperLU could not factorise the tangent: {e}") from None
-        return Factor(lambda b, transpose=False: lu.solve(b, trans="T" if transpose else "N"), K)
+        f = Factor(lambda b, transpose=False: lu.solve(b, trans="T" if transpose else "N"), K)
+        f.nbytes = 12 * (lu.L.nnz + lu.U.nnz) + 8 * A.shape[0]  # values + row indices, permutations
+        return f
 
 
 class Umfpack(LinearSolver):
@@ -438,6 +441,7 @@ class Pardiso(LinearSolver):
 
         factor = Factor(solver_of(h.generation), A, None if fresh else refactor)
         factor.owner = self  # keeps this solver, and so its PARDISO handles, alive
+        factor.nbytes = 8 * abs(int(h.iparm[17]))  # iparm(18): non-zeros of the factors
         return factor
 
     def describe(self) -> str:

@@ -25,6 +25,8 @@ sparsely once per pattern); the DDM pseudo-load is a JVP of ``residual`` in
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from . import element
@@ -335,11 +337,17 @@ class Model:
             return state_n, state_dot
         w = jnp.asarray(inc.w)
         state = self._update(w, params, t, state_n)
+        # the unknowns in the state are those of the increment: share inc.w instead of
+        # keeping a second copy (half the memory per increment with friction)
+        state = (inc.w,) + tuple(state[1:])
         sdot = None
         if state_dot is not None and len(names):
+            t0 = time.perf_counter()
             wd = jnp.asarray(np.stack([inc.sens[n] for n in names]))
             sdot = self._update_jvp(w, params, t, state_n, wd, unit_tangents(params, list(names)),
                                     state_dot)
+            jax.block_until_ready(sdot)
+            inc.timing["history_sensitivity"] = time.perf_counter() - t0
         inc.state, inc.state_sens = state, sdot
         return state, sdot
 

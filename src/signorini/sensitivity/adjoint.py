@@ -92,7 +92,7 @@ class Adjoint:
         grad = jax.tree_util.tree_map(jnp.zeros_like, pe)
         G = 0.0
         s_bar = None  # cotangent of the state after increment n
-        timing = {"factorization": 0.0, "solve": 0.0, "vjp": 0.0, "increments": 0,
+        timing = {"tangent_factorization": 0.0, "solve": 0.0, "vjp": 0.0, "increments": 0,
                   "factorizations": 0}
         N = len(sol.increments)
         first = selected[0] if selected else N
@@ -130,7 +130,7 @@ class Adjoint:
                 t2 = time.perf_counter()
                 mu = fac.solve(np.ascontiguousarray(w_bar[m.free]), transpose=True)
                 t3 = time.perf_counter()
-                timing["factorization"] += t2 - t1
+                timing["tangent_factorization"] += t2 - t1
                 timing["solve"] += t3 - t2
                 c = np.zeros(m.n_dof)
                 c[m.free] = -mu
