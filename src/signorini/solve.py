@@ -104,7 +104,8 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             increment on it (``Increment.factor``) for an adjoint backward pass.
         switch_tol: relative distance from a switch of the contact or plasticity
             law below which a point is reported on it (``Increment.switches``,
-            :mod:`signorini.sensitivity.nonsmooth`).
+            :mod:`signorini.sensitivity.nonsmooth`); None: no report (the coarse
+            levels of a coarse-to-fine start).
 
     Returns:
         A :class:`~signorini.solution.Solution` with every converged increment;
@@ -121,8 +122,9 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
     if isinstance(checkpoint, bool) or not isinstance(checkpoint, (int, np.integer)) or checkpoint < 1:
         raise InputError(f"checkpoint must be a positive integer (keep every k-th state), got "
                          f"{checkpoint!r}")
-    if not (isinstance(switch_tol, (int, float)) and 0 <= switch_tol < 1):
-        raise InputError(f"switch_tol must be a number in [0, 1), got {switch_tol!r}")
+    if switch_tol is not None and not (isinstance(switch_tol, (int, float)) and 0 <= switch_tol < 1):
+        raise InputError(f"switch_tol must be a number in [0, 1) or None (no report), got "
+                         f"{switch_tol!r}")
     with openblas_single_thread():
         return _solve(problem, steps, sensitivities, options, solver, label, initial,
                       ddm_factorization, until, int(checkpoint), bool(keep_factors), switch_tol)
@@ -156,7 +158,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     sol.solver = lin.solver.name
     checks.before_solve(model, params, sol)
     inc_checks = checks.IncrementChecks(model, params, sol)
-    switches = nonsmooth.SwitchDetector(model, params, switch_tol)
+    switches = None if switch_tol is None else nonsmooth.SwitchDetector(model, params, switch_tol)
     progress = SolveProgress(label, steps)
     w = np.zeros(model.n_dof)
     state_n = model.initial_state(w, params)
@@ -230,7 +232,8 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
             progress.cut(t_new, e.reason, dt)
             continue
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
-        inc.switches = switches(jnp.asarray(w_trial), params, t_new, state_n)
+        if switches is not None:
+            inc.switches = switches(jnp.asarray(w_trial), params, t_new, state_n)
         if keep_factors:
             try:
                 inc.factor = _own_factor(lin, model.pattern.assemble(blocks))
