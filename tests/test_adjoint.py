@@ -259,3 +259,17 @@ def test_solution_argument_must_match_and_memory_counts_factors():
     assert a.memory["per_increment"] > a.memory["factors_per_increment"]
     # the state shares the unknowns of its increment (no second copy)
     assert all(inc.state[0] is inc.w for inc in sol.increments)
+
+
+def test_cli_optimise_forging_with_adjoint_gradient(tmp_path):
+    """optimise-forging --gradient adjoint takes the same path as the DDM."""
+    from signorini.cli import main
+
+    F = {}
+    for g in ("adjoint", "ddm"):
+        main(["optimise-forging", "--out", str(tmp_path / g), "--mu", "0.2", "--mesh", "2x4",
+              "--steps", "4", "--maxiter", "2", "--gradient", g, "--sequential", "-q"])
+        rows = list(__import__("csv").DictReader(open(next((tmp_path / g).rglob("history.csv")))))
+        F[g] = np.array([float(r["F"]) for r in rows])
+    assert len(F["adjoint"]) == len(F["ddm"]) >= 3
+    assert np.allclose(F["adjoint"], F["ddm"], rtol=1e-9, atol=0)

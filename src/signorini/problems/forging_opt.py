@@ -228,7 +228,8 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
         method: ``"BFGS"`` (unbounded; failures are penalised), ``"L-BFGS-B"`` or
             ``"SLSQP"`` (bounds phi_k >= ``phi_min``).
         gtol: gradient tolerance (BFGS, L-BFGS-B; SLSQP: ftol); maxiter: iteration limit.
-        gradient: ``"ddm"`` or ``"fd"`` (central differences, 10 extra solves per gradient).
+        gradient: ``"ddm"``, ``"adjoint"`` (one backward pass per design point) or ``"fd"``
+            (central differences, 10 extra solves per gradient).
         resume: continue from ``out/mu_<mu>/history.csv`` (restart at its best point;
             the file is appended to).
         solver, rtol: linear solver and Newton tolerance of the forging solves.
@@ -249,8 +250,8 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
     t0 = time.perf_counter()
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    if gradient not in ("ddm", "fd"):
-        raise InputError(f"gradient must be 'ddm' or 'fd', got {gradient!r}")
+    if gradient not in ("ddm", "adjoint", "fd"):
+        raise InputError(f"gradient must be 'ddm', 'adjoint' or 'fd', got {gradient!r}")
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"steps must be a whole number >= 1, got {steps!r}")
     try:
