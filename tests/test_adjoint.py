@@ -120,8 +120,8 @@ def test_shape_gradient_of_every_node_equals_ddm_and_fd():
 
 
 def test_nodes_gradient_of_rigid_translation_is_consistent():
-    """A rigid translation of mesh and obstacle together changes nothing: the
-    x-components of the nodal gradient sum with the obstacle-centre derivative to 0."""
+    """A rigid vertical translation of mesh and obstacle together changes nothing: the
+    y-components of the nodal gradient sum with the obstacle-centre derivative to 0."""
     pb = with_centre(hertz.hertz_problem(n_fine=12))
     a = gradient(pb, hertz.contact_work, ["nodes", "yc"], mode="adjoint", options=TIGHT)
     total = a["nodes"][:, 1].sum() + a["yc"]
@@ -250,7 +250,7 @@ def test_cli_adjoint_next_to_ddm(tmp_path):
 def test_solution_argument_must_match_and_memory_counts_factors():
     pb = hertz_friction.hertz_friction_problem(n_fine=12)
     sol = sg.solve(pb, steps=3, options=TIGHT)
-    with pytest.raises(InputError, match="same mesh and parameter values"):
+    with pytest.raises(InputError, match="same mesh, components and parameter values"):
         gradient(pb.with_params(P=3.0), hertz.contact_work, ["R"], solution=sol)
     a = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, factors="store")
     b = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, solution=sol)
@@ -273,3 +273,99 @@ def test_cli_optimise_forging_with_adjoint_gradient(tmp_path):
         F[g] = np.array([float(r["F"]) for r in rows])
     assert len(F["adjoint"]) == len(F["ddm"]) >= 3
     assert np.allclose(F["adjoint"], F["ddm"], rtol=1e-9, atol=0)
+
+
+def pressed_block(friction: bool):
+    """A block whose base is moved up by a prescribed displacement d into a cylinder
+    (with friction: a sideways base motion s too): the prescribed values depend on
+    parameters, so their adjoint path (VJP of the prescribed values) is exercised."""
+    from signorini.contact import Coulomb
+
+    mesh = rectangle(np.linspace(0.0, 2.0, 9), np.linspace(-1.0, 0.0, 5))
+    law = Coulomb("mu", "eps", "eps") if friction else AugmentedLagrangian("eps")
+    return Problem(mesh=mesh, material=LinearElastic(),
+                   params={"E": 100.0, "nu": 0.3, "R": 1.0, "d": 0.02, "s": 0.004, "mu": 0.3,
+                           "eps": 400.0},
+                   fixed=(Fixed("bottom", 1, "d"), Fixed("bottom", 0, "s")),
+                   contact=(Contact(Circle(radius="R", centre=(1.0, lambda p: p["R"])), "top", law),))
+
+
+@pytest.mark.parametrize("friction", [False, True])
+def test_adjoint_with_prescribed_values_and_a_state_response(friction):
+    pb = pressed_block(friction)
+    names = ["d", "s", "E", "R"] + (["mu"] if friction else [])
+    m = sg.solve.__globals__["model_for"](pb)
+
+    def resp(w, p, t, state_n):  # depends on the history before the increment, too
+        f = m.contact_fields(w, p, t, 0)
+        extra = jnp.sum(state_n[1][0] ** 2) if state_n is not None else 0.0
+        return jnp.sum(f["p_N"] * f["area"]) ** 2 + extra
+
+    d = gradient(pb, resp, names, mode="ddm", steps=3, increments="all", options=TIGHT)
+    a = gradient(pb, resp, names, mode="adjoint", steps=3, increments="all", options=TIGHT,
+                 solution=d.solution)
+    assert abs(d["d"]) > 0 and abs(d["s"]) > 0
+    assert rel(a.as_array(names), d.as_array(names)) < 1e-10
+
+
+class _Foreign:
+    """A user solver: factorize(K) -> object with solve(b) only (no transposed solve)."""
+
+    def factorize(self, K):
+        import scipy.sparse.linalg as spla
+
+        lu = spla.splu(K.tocsc())
+        return type("F", (), {"solve": staticmethod(lu.solve)})()
+
+
+def test_user_solvers_forward_and_adjoint():
+    from signorini.linsolve import Factor
+
+    pb = hertz_friction.hertz_friction_problem(n_fine=12)
+    d = gradient(pb, hertz.contact_work, ["R", "mu"], mode="ddm", steps=2, options=TIGHT)
+    a = gradient(pb, hertz.contact_work, ["R", "mu"], steps=2, options=TIGHT, solver=_Foreign())
+    assert rel(a.as_array(), d.as_array()) < 1e-9
+    # a factor written to the solve(b) contract still serves Newton; its transposed
+    # solve, which it does not have, is a clear error
+    import scipy.sparse as sp
+
+    K = sp.csr_matrix(np.array([[4.0, 1.0], [2.0, 3.0]]))
+    f = Factor(lambda b: np.linalg.solve(K.toarray(), b), K)
+    assert np.allclose(K @ f.solve(np.ones(2)), 1.0)
+    with pytest.raises(InputError, match="transposed solve"):
+        f.solve(np.ones(2), transpose=True)
+    r = Factor(lambda b: np.linalg.solve(K.toarray(), b), K,
+               transpose_factor=lambda: Factor(lambda b: np.linalg.solve(K.T.toarray(), b), K.T.tocsr()))
+    K2 = sp.csr_matrix(np.array([[4.0001, 1.0], [2.0, 3.0002]]))
+    x = r.refined_for(K2).solve(np.ones(2), transpose=True)  # refined against K2^T, not K^T
+    assert np.allclose(K2.T @ x, 1.0, atol=1e-12)
+    assert not np.allclose(K.T @ x, 1.0, atol=1e-6)
+
+
+def test_checkpointed_states_replay_exactly():
+    pb = hertz_friction.hertz_friction_problem(n_fine=12)
+    full = sg.solve(pb, steps=6, options=TIGHT)
+    cp = sg.solve(pb, steps=6, options=TIGHT, checkpoint=4)
+    assert [inc.state is not None for inc in cp.increments] == [False, False, False, True, False, True]
+    for n in (0, 2, 4, -2):
+        a, b = cp.state_after(n), full.state_after(n)
+        for x, y in zip(jax_leaves(a), jax_leaves(b)):
+            assert np.array_equal(np.asarray(x), np.asarray(y))
+
+
+def jax_leaves(tree):
+    from signorini._jax import jax
+
+    return jax.tree_util.tree_leaves(tree)
+
+
+def test_stick_slip_and_yield_switches_are_detected_with_a_wide_tolerance(tmp_path):
+    """The detectors report points once the tolerance covers them (their positive
+    case; at 1e-6 these paths have none)."""
+    fr = sg.solve(hertz_friction.hertz_friction_problem(n_fine=12), steps=3, switch_tol=0.5)
+    assert any(inc.switches["stick_slip"][0] for inc in fr.increments)
+    pb = forging.forging_problem(mesh=(2, 4))
+    fg = sg.solve(pb, steps=4, options=forging.options(), switch_tol=0.5)
+    assert any(inc.switches["elastic_plastic"] for inc in fg.increments)
+    mesh = __import__("meshio").read(io.write_vtu(fg, tmp_path / "f.vtu"))
+    assert mesh.cell_data["plastic_switch"][0].sum() == len(fg.increments[-1].switches["elastic_plastic"])

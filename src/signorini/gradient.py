@@ -20,7 +20,7 @@ import numpy as np
 
 from ._jax import jax, jnp
 from . import checks
-from .errors import InputError
+from .errors import InputError, SolverError
 from .model import NODES
 from .newton import NewtonOptions
 from .params import as_jax, check_names
@@ -71,26 +71,30 @@ class Gradient:
         return np.array([float(self.grad[n]) for n in names])
 
 
-def is_factory(fn) -> bool:
-    """A callable with exactly one required positional parameter is a factory G(model) -> fn."""
+def _positional(fn):
+    """(required, total) positional parameters of fn (None if unknown)."""
     try:
-        sig = inspect.signature(fn)
+        ps = [p for p in inspect.signature(fn).parameters.values()]
     except (TypeError, ValueError):
-        return False
-    pos = [p for p in sig.parameters.values() if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
-           and p.default is p.empty]
-    var = any(p.kind is p.VAR_POSITIONAL for p in sig.parameters.values())
-    return len(pos) == 1 and not var
+        return None
+    if any(p.kind is p.VAR_POSITIONAL for p in ps):
+        return None
+    pos = [p for p in ps if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    return sum(p.default is p.empty for p in pos), len(pos)
+
+
+def is_factory(fn) -> bool:
+    """A factory G(model) -> fn has one required positional parameter and at most
+    one optional one (e.g. ``hertz.contact_work(model, surface=0)``)."""
+    n = _positional(fn)
+    return n is not None and n[0] == 1 and n[1] <= 2
 
 
 def with_state(fn: Callable) -> Callable:
-    """``fn(w, params, t[, state_n])`` as a function of four arguments."""
-    try:
-        n = len([p for p in inspect.signature(fn).parameters.values()
-                 if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty])
-    except (TypeError, ValueError):
-        n = 4
-    if n == 3:
+    """``fn(w, params, t[, state_n])`` as a function of four arguments (a fourth
+    positional parameter, with or without default, receives the state)."""
+    n = _positional(fn)
+    if n is not None and n[1] == 3:
         return lambda w, p, t, s: fn(w, p, t)
     return fn
 
@@ -168,6 +172,10 @@ def gradient(problem, response, params: Sequence[str], *, mode: str = "adjoint",
         raise InputError(f"the gradient with respect to {NODES!r} (every nodal coordinate) is "
                          f"computed by mode='adjoint' only; for a check by finite differences or "
                          "DDM, move a node with a shape parameter (Problem(shape=...))")
+    if not (isinstance(fd_step, (int, float)) and not isinstance(fd_step, bool) and fd_step > 0):
+        raise InputError(f"fd_step must be a positive number, got {fd_step!r}")
+    if mode != "adjoint" and (solution is not None or checkpoint != 1 or factors != "recompute"):
+        raise InputError("solution=, checkpoint= and factors= belong to mode='adjoint'")
     if factors not in ("recompute", "store"):
         raise InputError(f"factors must be 'recompute' or 'store', got {factors!r}")
     if mode == "adjoint":
@@ -188,6 +196,7 @@ def _ddm(problem, response, names, steps, increments, options, solver, label) ->
     t1 = time.perf_counter()
     fn = response_function(response, sol.model)
     idx = selected_increments(increments, len(sol.increments))
+    check_scalar(fn, sol, idx[-1])
     key = ("gradient", response)
     G, grad = 0.0, dict.fromkeys(names, 0.0)
     for i in idx:
@@ -235,7 +244,7 @@ def _adjoint(problem, response, names, steps, increments, options, solver, facto
         _check_solution(sol, problem, steps)
     t1 = time.perf_counter()
     G, grad, timing = adjoint_gradient(sol, response, names, increments=increments,
-                                       solver=sol.solver or solver)
+                                       solver=sol.linear_solver or solver)
     timing.update({"forward": t1 - t0, "gradient": time.perf_counter() - t1})
     out = Gradient(G, grad, "adjoint", sol, timing, memory_per_increment(sol), list(sol.warnings))
     message = nonsmooth.warning(sol, names)
@@ -245,13 +254,26 @@ def _adjoint(problem, response, names, steps, increments, options, solver, facto
     return out
 
 
+def _same(a, b) -> bool:
+    if a is b:
+        return True
+    if isinstance(a, dict) and isinstance(b, dict):  # shape fields: name -> array
+        return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):  # arrays inside: compared element-wise
+        return False
+
+
 def _check_solution(sol, problem, steps) -> None:
     """A solution given to the adjoint must be a converged solve of this problem."""
     if getattr(sol, "status", None) != "converged" or not sol.increments:
         raise InputError("the adjoint needs a converged solution (solution.status == 'converged')")
-    if sol.model.problem.mesh is not problem.mesh or dict(sol.params) != dict(problem.params):
-        raise InputError("solution= must be a solve of this problem (same mesh and parameter "
-                         "values); solve it again or pass the problem it was solved for")
+    same = all(_same(getattr(sol.model.problem, f), getattr(problem, f)) for f in
+               ("mesh", "material", "fixed", "loads", "contact", "kinematics", "formulation", "shape"))
+    if not same or dict(sol.params) != dict(problem.params):
+        raise InputError("solution= must be a solve of this problem (same mesh, components and "
+                         "parameter values); solve it again or pass the problem it was solved for")
     if abs(sol.increments[-1].t - 1.0) > 1e-12:
         raise InputError(f"solution= ends at t = {sol.increments[-1].t:.6g}, not at the end of "
                          "the load path")
@@ -274,9 +296,23 @@ def adjoint_gradient(solution, response, names: Sequence[str], *, increments="la
     if NODES in names:
         pe[NODES] = jnp.zeros((m.n_nodes, 2))
     idx = selected_increments(increments, len(solution.increments))
+    check_scalar(fn, solution, idx[-1])
     G, g, timing = adj.backward(solution, pe, idx, solver=solver)
+    if not np.all(np.isfinite(G)) or not all(np.all(np.isfinite(v)) for v in
+                                             jax.tree_util.tree_leaves(g)):
+        raise SolverError("the adjoint gradient is not finite (NaN/inf): a parameter expression or "
+                          "the response may not be differentiable at these values")
     grad = {n: (np.asarray(g[n]) if n == NODES else float(g[n])) for n in names}
     return G, grad, timing
+
+
+def check_scalar(fn, solution, i: int) -> None:
+    """The response must be one number (an InputError, not JAX's TypeError)."""
+    inc = solution.increments[i]
+    state = solution.state_before(i)[0]
+    shape = jax.eval_shape(fn, jnp.asarray(inc.w), solution._jp, inc.t, state).shape
+    if int(np.prod(shape)) != 1:
+        raise InputError(f"the response must return a scalar, got an array of shape {shape}")
 
 
 def memory_per_increment(solution) -> dict:

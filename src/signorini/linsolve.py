@@ -49,12 +49,15 @@ class Factor:
     """A factorisation of K: ``solve(b)`` (or of K^T: ``solve(b, transpose=True)``)
     with a backward-error check and refinement.
 
-    ``solve`` is the backend's ``solve(b, transpose)``; a backend without a
-    transposed solve passes ``transpose_factor``, a function returning a
-    :class:`Factor` of K^T (factorised once, on first use)."""
+    ``solve`` is the backend's ``solve(b)``; with ``transposable=True`` it is
+    ``solve(b, transpose)``. A backend without a transposed solve may pass
+    ``transpose_factor``, a function returning a :class:`Factor` of K^T
+    (factorised once, on first use)."""
 
-    def __init__(self, solve, K: sp.spmatrix, refactor=None, transpose_factor=None):
+    def __init__(self, solve, K: sp.spmatrix, refactor=None, transpose_factor=None,
+                 transposable: bool = False):
         self._solve = solve
+        self._transposable = transposable
         self._refactor = refactor  # () -> a more accurate solve function, if the solver has one
         self._transpose_factor = transpose_factor
         self._transposed = None
@@ -90,7 +93,12 @@ class Factor:
     def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
         """x with K x = b (``transpose``: K^T x = b); b (n,) or (n, k)."""
         b = np.asarray(b, dtype=float)
-        if transpose and self._transpose_factor is not None:
+        if transpose and not self._transposable:
+            if self._transpose_factor is None:
+                raise InputError("this factorisation has no transposed solve (K^T x = b), which "
+                                 "the adjoint needs: use solver 'pardiso' or 'superlu', or return a "
+                                 "signorini.linsolve.Factor with transposable=True or "
+                                 "transpose_factor=")
             if self._transposed is None:
                 self._transposed = self._transpose_factor()
             x = self._transposed.solve(b)
@@ -104,7 +112,8 @@ class Factor:
 
     def _solve_refined(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
         K = self.K.T if transpose else self.K
-        x = self._solve(b, transpose)
+        step = (lambda v: self._solve(v, True)) if transpose else self._solve
+        x = step(b)
         if not np.all(np.isfinite(x)):
             raise SingularTangentError("the linear solve returned non-finite values (singular tangent)")
         r = b - K @ x
@@ -112,7 +121,7 @@ class Factor:
         for _ in range(REFINE_STEPS):
             if eta <= REFINE_TOL:
                 break
-            x_new = x + self._solve(r, transpose)
+            x_new = x + step(r)
             self.refinements += 1
             r_new = b - K @ x_new
             eta_new = self._backward_error(r_new, x_new, b, transpose)
@@ -130,7 +139,12 @@ class Factor:
     def refined_for(self, K: sp.spmatrix) -> "Factor":
         """This factorisation used for a nearby matrix K: solves of K by iterative
         refinement (this factor as the preconditioner), checked by K's backward error."""
-        return Factor(self._solve, K, transpose_factor=self._transpose_factor)
+        def transposed():
+            base = self._transposed if self._transposed is not None else self._transpose_factor()
+            return base.refined_for(K.T.tocsr())
+        keep = not self._transposable and self._transpose_factor is not None
+        return Factor(self._solve, K, transpose_factor=transposed if keep else None,
+                      transposable=self._transposable)
 
 
 class LinearSolver:
@@ -165,7 +179,8 @@ class SuperLU(LinearSolver):
                 lu = spla.splu(A, permc_spec="COLAMD")
         except RuntimeError as e:  # "Factor is exactly singular"
             raise SingularTangentError(f"SuperLU could not factorise the tangent: {e}") from None
-        f = Factor(lambda b, transpose=False: lu.solve(b, trans="T" if transpose else "N"), K)
+        f = Factor(lambda b, transpose=False: lu.solve(b, trans="T" if transpose else "N"), K,
+                   transposable=True)
         f.nbytes = 12 * (lu.L.nnz + lu.U.nnz) + 8 * A.shape[0]  # values + row indices, permutations
         return f
 
@@ -189,9 +204,7 @@ class Umfpack(LinearSolver):
             lu = um.splu(K.tocsc())
         except Exception as e:  # noqa: BLE001 - umfpack raises generic errors
             raise SingularTangentError(f"UMFPACK could not factorise the tangent: {e}") from None
-        def solve(b, transpose=False):
-            if transpose:
-                raise AssertionError("unreachable: transposed solves use transpose_factor")
+        def solve(b):
             return np.column_stack([lu.solve(c) for c in b.T]) if b.ndim == 2 else lu.solve(b)
         return Factor(solve, K, transpose_factor=lambda: self.factorize(K.T.tocsr()))
 
@@ -439,7 +452,7 @@ class Pardiso(LinearSolver):
             h.generation += 1
             return solver_of(h.generation)
 
-        factor = Factor(solver_of(h.generation), A, None if fresh else refactor)
+        factor = Factor(solver_of(h.generation), A, None if fresh else refactor, transposable=True)
         factor.owner = self  # keeps this solver, and so its PARDISO handles, alive
         factor.nbytes = 8 * abs(int(h.iparm[17]))  # iparm(18): non-zeros of the factors
         return factor
@@ -476,12 +489,7 @@ class _Foreign(LinearSolver):
         f = self._obj.factorize(K)
         if isinstance(f, Factor):
             return f
-
-        def solve(b, transpose=False):
-            if transpose:
-                raise AssertionError("unreachable: transposed solves use transpose_factor")
-            return f.solve(b)
-        return Factor(solve, K, transpose_factor=lambda: self.factorize(K.T.tocsr()))
+        return Factor(f.solve, K, transpose_factor=lambda: self.factorize(K.T.tocsr()))
 
 
 def available() -> list[str]:

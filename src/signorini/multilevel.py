@@ -108,11 +108,11 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensiti
         # coarse levels: the first increment only (its end starts the next level);
         # later increments start from the extrapolating predictor
         # (and without the switch-point report, which only a result needs)
+        kw = dict(solve_kwargs) if last else {**solve_kwargs, "switch_tol": None}
         with contextlib.nullcontext() if last else checks.silenced():
             sol = solve(pb, steps=steps, sensitivities=sensitivities if last else (),
                         initial=initial, label=label if last else f"level {k}",
-                        until=1.0 if last else 1.0 / steps,
-                        **({} if last else {"switch_tol": None}), **solve_kwargs)
+                        until=1.0 if last else 1.0 / steps, **kw)
         levels.append({"dofs": int(sol.model.n_dof), "newton_iterations": list(sol.newton_iterations),
                        "time_s": time.perf_counter() - t0})
         log.debug("coarse-to-fine level %d: %d DOFs, %s iterations", k, sol.model.n_dof,

@@ -66,8 +66,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConvergenceError, InputError, SignoriniWarning
+from . import checks
+from .errors import ConvergenceError, InputError, SignoriniWarning, SolverError
 from .gradient import adjoint_gradient, is_factory
+from .sensitivity import nonsmooth
 from .newton import NewtonOptions
 from .params import check_names
 from .solve import solve
@@ -246,7 +248,8 @@ class Objective:
         return self.evaluate(x).F
 
     def jac(self, x) -> np.ndarray:
-        """DF/Dx: the DDM gradient of the evaluation at x (``"fd"``: central differences)."""
+        """DF/Dx: the gradient of the evaluation at x (DDM or adjoint; ``"fd"``: central
+        differences)."""
         x = self._point(x)
         ev = self.evaluate(x)
         if self.gradient_mode != "fd" or not ev.ok:
@@ -408,16 +411,26 @@ class Objective:
                 warns = list(sol.warnings)
                 val, dv = sol.response(self._fn(sol.model), self.increment, with_sensitivities=ddm,
                                        key=self.key)
-                if with_grad and not ddm:  # adjoint: one backward pass for all names
-                    dv = adjoint_gradient(sol, self._fn(sol.model), names,
-                                          increments=[self.increment], solver=sol.solver)[1]
                 if np.size(val) != 1:
                     raise InputError("the response must return a scalar, got an array of shape "
                                      f"{np.shape(val)}")
+                if with_grad and not ddm:  # adjoint: one backward pass for all names
+                    try:
+                        dv = adjoint_gradient(sol, self._fn(sol.model), names,
+                                              increments=[self.increment],
+                                              solver=sol.linear_solver or self.solver)[1]
+                    except SolverError as e:
+                        status, reason, err = "failed", f"adjoint: {e}", ConvergenceError(str(e), partial=sol)
+                        dv = {n: math.nan for n in names}
+                    message = nonsmooth.warning(sol, names)
+                    if message:
+                        checks.warn(sol, message)
+                        warns = list(sol.warnings)
                 F = float(np.asarray(val).reshape(()))
                 if with_grad:
                     g = np.array([float(np.asarray(dv[n]).reshape(())) for n in names])
-                if not np.isfinite(F) or (g is not None and not np.all(np.isfinite(g))):
+                if status == "ok" and (not np.isfinite(F) or
+                                       (g is not None and not np.all(np.isfinite(g)))):
                     status, reason = "failed", f"the response or its gradient is not finite (F = {F})"
                     err = ConvergenceError(reason, partial=sol)
         if status != "ok":

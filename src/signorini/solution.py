@@ -63,6 +63,7 @@ class Solution:
         self.label: str | None = None  # name of the solve in logs ("base", "FD R+", ...)
         self.warnings: list[str] = []  # suspicious results found on the way (see signorini.checks)
         self.solver: str | None = None  # linear solver used (``auto`` resolved)
+        self.linear_solver = None  # that solver object
         self.symmetric: bool | None = None  # symmetric factorisation of the tangent?
         self.shape_gradient = None  # (n_nodes, 2) adjoint gradient to write with the last increment
         self._jp = as_jax(params)
@@ -153,8 +154,10 @@ class Solution:
         return m.initial_state(np.zeros(m.n_dof), self._jp), sdot
 
     def state_after(self, n: int):
-        """History state after increment n (>= 0), replayed by ``model.update`` from
-        the last kept state before it when ``solve(checkpoint=k)`` dropped it."""
+        """History state after increment n, replayed by ``model.update`` from the
+        last kept state before it when ``solve(checkpoint=k)`` dropped it."""
+        self._inc(n)
+        n = range(len(self.increments))[n]  # a negative index counts from the end
         inc = self.increments[n]
         if inc.state is not None or not self.model.has_history:
             return inc.state

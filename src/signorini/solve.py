@@ -156,6 +156,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     sol = Solution(model, dict(problem.params), names)
     sol.label = label
     sol.solver = lin.solver.name
+    sol.linear_solver = lin.solver  # the object (kept analyses, user solvers) for an adjoint
     checks.before_solve(model, params, sol)
     inc_checks = checks.IncrementChecks(model, params, sol)
     switches = None if switch_tol is None else nonsmooth.SwitchDetector(model, params, switch_tol)

@@ -29,11 +29,42 @@ import time
 import numpy as np
 
 from .._jax import jax, jnp
-from ..errors import SingularTangentError
+from ..errors import SingularTangentError, SolverError
 from ..linsolve import TangentSolver, get_solver, openblas_single_thread
 from ..model import NODES
 
 log = logging.getLogger("signorini")
+
+#: backward error above which a transposed solve is an error, not a gradient
+ACCURACY = 1e-10
+
+
+class _Replay:
+    """States before each increment for a backward pass: kept ones read, dropped
+    ones (``solve(checkpoint=k)``) replayed once per segment and held until the
+    pass leaves it (at most k states at a time)."""
+
+    def __init__(self, sol):
+        self.sol = sol
+        self.held: dict = {}
+
+    def before(self, n: int):
+        if n == 0:
+            return self.sol.state_before(0)[0]
+        incs = self.sol.increments
+        if incs[n - 1].state is not None:
+            return incs[n - 1].state
+        if n - 1 not in self.held:
+            j = n - 1
+            while j >= 0 and incs[j].state is None:
+                j -= 1
+            m = self.sol.model
+            state = (m.initial_state(np.zeros(m.n_dof), self.sol._jp) if j < 0 else incs[j].state)
+            self.held = {}
+            for k in range(j + 1, n):
+                state = m._update(jnp.asarray(incs[k].w), self.sol._jp, incs[k].t, state)
+                self.held[k] = state
+        return self.held[n - 1]
 
 
 def _add(a, b):
@@ -68,7 +99,7 @@ class Adjoint:
         self._upd_vjp = jax.jit(upd_vjp)
         self._wp_vjp = jax.jit(wp_vjp)
         self._init_vjp = jax.jit(init_vjp)
-        self._cases = jax.jit(m.cases)
+        self._cases = m._cases
 
     def backward(self, solution, params_ext: dict, selected, *, solver="auto", progress=None):
         """d(sum over ``selected`` increments of G_n)/d(params_ext) by one backward pass.
@@ -96,13 +127,14 @@ class Adjoint:
                   "factorizations": 0}
         N = len(sol.increments)
         first = selected[0] if selected else N
+        states = _Replay(sol)
         for n in range(N - 1, -1, -1):
             if not m.has_history and n < first:
                 break  # without history nothing flows to earlier increments
             inc = sol.increments[n]
             t = inc.t
             w = jnp.asarray(inc.w)
-            s_prev = sol.state_before(n)[0] if m.has_history else None
+            s_prev = states.before(n) if m.has_history else None
             t0 = time.perf_counter()
             w_bar = jnp.zeros(m.n_dof)
             s_prev_bar = None
@@ -130,11 +162,17 @@ class Adjoint:
                 t2 = time.perf_counter()
                 mu = fac.solve(np.ascontiguousarray(w_bar[m.free]), transpose=True)
                 t3 = time.perf_counter()
+                if not np.all(np.isfinite(mu)) or fac.backward_error > ACCURACY:
+                    raise SolverError(
+                        f"the transposed solve at t={t:.6g} is not accurate (backward error "
+                        f"{fac.backward_error:.1e} > {ACCURACY:g}), so the adjoint gradient would be "
+                        "wrong; try another solver (solver='superlu')")
                 timing["tangent_factorization"] += t2 - t1
                 timing["solve"] += t3 - t2
                 c = np.zeros(m.n_dof)
                 c[m.free] = -mu
-                cases = self._cases(w, pe, t, s_prev) if m.has_contact_history else None
+                # the branch flags of the converged tangent (evaluated as in local_tangents)
+                cases = self._cases(w, params, t, s_prev) if m.has_contact_history else None
                 rw, rp, rs = self._res_vjp(w, pe, t, s_prev, cases, jnp.asarray(c))
                 w_p_bar = w_bar[m.prescribed] + np.asarray(rw)[m.prescribed]
                 grad, s_prev_bar = _add(grad, rp), _add(s_prev_bar, rs)
