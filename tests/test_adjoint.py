@@ -226,7 +226,7 @@ def test_optimisation_objective_with_adjoint_gradient():
     x = np.array([0.72, 0.69, 0.25])
     evs = [Objective(pb, names, resp, steps=4, options=forging.options(), gradient_mode=mode).evaluate(x)
            for mode in ("ddm", "adjoint")]
-    assert evs[1].F == evs[0].F
+    assert evs[1].F == pytest.approx(evs[0].F, rel=1e-13)  # two solves (MKL threads)
     assert rel(evs[1].grad, evs[0].grad) < 1e-10
 
 
@@ -249,10 +249,11 @@ def test_cli_adjoint_next_to_ddm(tmp_path):
 
 def test_solution_argument_must_match_and_memory_counts_factors():
     pb = hertz_friction.hertz_friction_problem(n_fine=12)
-    sol = sg.solve(pb, steps=3, options=TIGHT)
+    sol = sg.solve(pb, steps=3, options=TIGHT, solver="superlu")  # bitwise repeatable
     with pytest.raises(InputError, match="same mesh, components and parameter values"):
         gradient(pb.with_params(P=3.0), hertz.contact_work, ["R"], solution=sol)
-    a = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, factors="store")
+    a = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, factors="store",
+                 solver="superlu")
     b = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, solution=sol)
     assert a["R"] == pytest.approx(b["R"], rel=1e-10)
     assert a.memory["factors_per_increment"] > 0
@@ -344,8 +345,10 @@ def test_user_solvers_forward_and_adjoint():
 
 def test_checkpointed_states_replay_exactly():
     pb = hertz_friction.hertz_friction_problem(n_fine=12)
-    full = sg.solve(pb, steps=6, options=TIGHT)
-    cp = sg.solve(pb, steps=6, options=TIGHT, checkpoint=4)
+    # SuperLU: two solves bit for bit the same (MKL's threads are not), so the
+    # replayed states can be compared with stored ones exactly
+    full = sg.solve(pb, steps=6, options=TIGHT, solver="superlu")
+    cp = sg.solve(pb, steps=6, options=TIGHT, checkpoint=4, solver="superlu")
     assert [inc.state is not None for inc in cp.increments] == [False, False, False, True, False, True]
     for n in (0, 2, 4, -2):
         a, b = cp.state_after(n), full.state_after(n)
