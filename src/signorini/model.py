@@ -167,6 +167,12 @@ class Model:
     #: eps outside [1e-8, 1e8] x E/h makes the tangent ill-conditioned to no benefit
     EPS_RANGE = (1e-8, 1e8)
 
+    @staticmethod
+    def contact_cell_size(s, X) -> float:
+        """Mean edge length h of contact surface ``s`` on the coordinates X."""
+        X = np.asarray(X)
+        return float(np.linalg.norm(X[s.edges[:, 1]] - X[s.edges[:, 0]], axis=1).mean())
+
     def _check_regularisation(self, s, params) -> None:
         """eps (penalty / augmentation) must be finite and not absurd next to E/h."""
         vals = {k: float(v) for k, v in s.contact.method.values(params).items() if k.startswith("eps")}
@@ -174,8 +180,7 @@ class Model:
             E = float(resolve(self.problem.material.E, params))
         except AttributeError:
             return
-        X = self._X0_np
-        h = float(np.linalg.norm(X[s.edges[:, 1]] - X[s.edges[:, 0]], axis=1).mean())
+        h = self.contact_cell_size(s, self._X0_np)
         scale = E / h
         lo, hi = self.EPS_RANGE
         for k, v in vals.items():

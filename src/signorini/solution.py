@@ -161,16 +161,23 @@ class Solution:
         inc = self.increments[n]
         if inc.state is not None or not self.model.has_history:
             return inc.state
+        return self.replay(n)[n]
+
+    def replay(self, n: int) -> dict:
+        """{k: state after increment k} for the increments from the last kept state
+        before n up to n (the dropped segment of ``solve(checkpoint=k)`` that ends
+        at n), recomputed by ``model.update`` from the stored unknowns."""
         j = n
         while j >= 0 and self.increments[j].state is None:
             j -= 1
         m = self.model
         state = (m.initial_state(np.zeros(m.n_dof), self._jp) if j < 0 else
                  self.increments[j].state)
+        out = {}
         for k in range(j + 1, n + 1):
             inc_k = self.increments[k]
-            state = m._update(jnp.asarray(inc_k.w), self._jp, inc_k.t, state)
-        return state
+            state = out[k] = m._update(jnp.asarray(inc_k.w), self._jp, inc_k.t, state)
+        return out
 
     # ------------------------------------------------------- sensitivities
     def _check_name(self, name):

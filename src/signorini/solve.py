@@ -235,15 +235,17 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
         if switches is not None:
             inc.switches = switches(jnp.asarray(w_trial), params, t_new, state_n)
+        t_k = time.perf_counter()
+        K = model.pattern.assemble(blocks) if keep_factors or ddm is not None else None
+        t_k = time.perf_counter() - t_k  # booked with the DDM's factorisation, as before
         if keep_factors:
             try:
-                inc.factor = _own_factor(lin, model.pattern.assemble(blocks))
+                inc.factor = _own_factor(lin, K)
             except SingularTangentError as e:
                 raise fail(f"the converged tangent at t={t_new:.6g} is singular, so no adjoint "
                            f"can be computed: {e}") from None
         if ddm is not None:
-            t0 = time.perf_counter()
-            K = model.pattern.assemble(blocks)
+            t0 = time.perf_counter() - t_k
             fac = inc.factor  # kept for an adjoint (keep_factors): the DDM uses it as well
             reused = fac is None and ddm_factorization == "reuse" and last_fac is not None
             if reused:

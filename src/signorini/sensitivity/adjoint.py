@@ -55,15 +55,7 @@ class _Replay:
         if incs[n - 1].state is not None:
             return incs[n - 1].state
         if n - 1 not in self.held:
-            j = n - 1
-            while j >= 0 and incs[j].state is None:
-                j -= 1
-            m = self.sol.model
-            state = (m.initial_state(np.zeros(m.n_dof), self.sol._jp) if j < 0 else incs[j].state)
-            self.held = {}
-            for k in range(j + 1, n):
-                state = m._update(jnp.asarray(incs[k].w), self.sol._jp, incs[k].t, state)
-                self.held[k] = state
+            self.held = self.sol.replay(n - 1)
         return self.held[n - 1]
 
 
@@ -101,7 +93,7 @@ class Adjoint:
         self._init_vjp = jax.jit(init_vjp)
         self._cases = m._cases
 
-    def backward(self, solution, params_ext: dict, selected, *, solver="auto", progress=None):
+    def backward(self, solution, params_ext: dict, selected, *, solver="auto"):
         """d(sum over ``selected`` increments of G_n)/d(params_ext) by one backward pass.
 
         Args:
@@ -114,9 +106,9 @@ class Adjoint:
             (G, gradient pytree like params_ext, timings dict).
         """
         with openblas_single_thread():
-            return self._backward(solution, params_ext, sorted(set(selected)), solver, progress)
+            return self._backward(solution, params_ext, sorted(set(selected)), solver)
 
-    def _backward(self, sol, pe, selected, solver, progress):
+    def _backward(self, sol, pe, selected, solver):
         m = self.model
         params = {k: v for k, v in pe.items() if k != NODES}
         lin = TangentSolver(get_solver(solver), symmetric_candidate=not m.has_history)
@@ -185,8 +177,6 @@ class Adjoint:
             timing["vjp"] += time.perf_counter() - t3
             timing["increments"] += 1
             log.debug("adjoint: increment %d (t = %.4g) done", n + 1, t)
-            if progress is not None:
-                progress(n)
         if m.has_history and s_bar is not None:
             grad = _add(grad, self._init_vjp(pe, s_bar))
         log.info("adjoint: backward pass over %d increment(s), %d factorisation(s)",

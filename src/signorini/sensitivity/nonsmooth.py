@@ -40,7 +40,7 @@ class SwitchDetector:
         self._h = []
         self._eps = []
         for s in model.surfaces:
-            self._h.append(float(np.linalg.norm(X[s.edges[:, 1]] - X[s.edges[:, 0]], axis=1).mean()))
+            self._h.append(model.contact_cell_size(s, X))
             vals = s.contact.method.values(params)
             self._eps.append(float(vals.get("eps_n", vals.get("eps", 0.0))))
 
