@@ -232,22 +232,67 @@ def test_until_stops_the_path_with_nominal_increments():
         sg.solve(pb, until=1.5)
 
 
-def test_coarse_start_of_a_frictional_path():
-    """The coarse meshes are solved to the end of the first increment only; the
-    fine path is the one from rest."""
+def test_coarse_meshes_guide_every_increment_of_a_frictional_path():
+    """The coarse meshes are solved along the whole path; every fine increment
+    starts from its own last state plus the interpolated coarse increment. Only
+    the start changes: the fine path is the one from rest."""
     fine = hertz_friction_problem(refine=1)
     o = sg.NewtonOptions(rtol=1e-10)
-    initial, levels = hertz.coarse_start_for(
+    guide, levels = hertz.coarse_start_for(
         fine, lambda r, n: hertz_friction_problem(refine=r, n_fine=n), 1, 24, steps=6, options=o,
         solver="auto")
-    assert len(levels) == 2 and all(len(lv["newton_iterations"]) == 1 for lv in levels)
+    assert len(levels) == 2 and all(len(lv["newton_iterations"]) == 6 for lv in levels)
+    assert [round(i.t, 12) for i in guide.increments] == [round(k / 6, 12) for k in range(1, 7)]
     plain = sg.solve(fine, steps=6, options=o, sensitivities=["R"])
-    started = sg.solve(fine, steps=6, options=o, sensitivities=["R"], initial=initial)
-    # measured 2 alone and 3 within the whole suite (the last iteration only crosses
-    # rtol at round-off level); from rest 5
+    started = sg.solve(fine, steps=6, options=o, sensitivities=["R"], guide=guide)
+    # measured: guided 2 1 1 2 1 1, from rest with the extrapolating predictor 7 4 3 3 3 3
+    later = started.newton_iterations[1:]
     assert started.newton_iterations[0] <= 3 < plain.newton_iterations[0]
+    assert max(later) <= 2 and sum(later) < sum(plain.newton_iterations[1:])
     for a, b in zip(started.increments, plain.increments):
         assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["R"], b.sens["R"]) < 1e-8
+
+
+def test_guide_covers_only_its_own_increments():
+    """Increments whose ends are not times of the guide (other steps, a guide that
+    stopped early) fall back to the predictor; a guide of the same mesh at other
+    parameters (finite-difference re-solves) is interpolated by the identity."""
+    from signorini.multilevel import Prolongation
+
+    pb = hertz_friction_problem(refine=0)
+    o = sg.NewtonOptions(rtol=1e-10)
+    plain = sg.solve(pb, steps=6, options=o)
+    half = sg.solve(hertz_friction_problem(refine=0, n_fine=12), steps=6, options=o, until=0.5)
+    other = sg.solve(hertz_friction_problem(refine=0, n_fine=12), steps=4, options=o)
+    near = pb.with_params(mu=pb.params["mu"] * (1 + 1e-6))
+    for guide in (half, other, plain):
+        sol = sg.solve(near if guide is plain else pb, steps=6, options=o, guide=guide)
+        ref = plain if guide is not plain else sg.solve(near, steps=6, options=o)
+        for a, b in zip(sol.increments, ref.increments):
+            assert _rel(a.w, b.w) < 1e-9
+    # from the base path of the same mesh, a perturbed re-solve needs one iteration
+    again = sg.solve(near, steps=6, options=o, guide=plain)
+    assert max(again.newton_iterations[1:]) <= 1
+    P = Prolongation(plain.model, sg.solve(near, steps=1, options=o).model)
+    assert (P.matrix != sp.identity(P.matrix.shape[0])).nnz == 0
+    with pytest.raises(sg.InputError, match="guide must be a Solution"):
+        sg.solve(pb, guide=plain.increments[0].w)
+
+
+def test_prolongation_reproduces_affine_fields():
+    """Piecewise linear interpolation is exact for an affine displacement field;
+    nodes outside the coarse mesh take the nearest coarse node's value."""
+    from signorini.multilevel import Prolongation
+    from signorini.solve import model_for
+
+    cm = model_for(hertz_friction_problem(refine=0, n_fine=12))
+    fm = model_for(hertz_friction_problem(refine=1))
+    Xc, Xf = np.asarray(cm._X0_np), np.asarray(fm._X0_np)
+    A = np.array([[0.3, -0.2], [0.1, 0.5]])
+    wc = np.zeros(cm.n_dof)
+    wc[: 2 * cm.n_nodes] = (Xc @ A.T + [1.0, -2.0]).ravel()
+    wf = Prolongation(cm, fm)(wc)
+    assert np.allclose(wf[: 2 * fm.n_nodes].reshape(-1, 2), Xf @ A.T + [1.0, -2.0], atol=1e-12)
 
 
 def test_memory_estimate_of_pardiso_matches_measurements():

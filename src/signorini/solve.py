@@ -70,7 +70,7 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
           options: NewtonOptions = NewtonOptions(), solver="auto", label: str | None = None,
           initial=None, ddm_factorization: str = "exact", until: float = 1.0,
           checkpoint: int = 1, keep_factors: bool = False,
-          switch_tol: float = nonsmooth.SWITCH_TOL) -> Solution:
+          switch_tol: float = nonsmooth.SWITCH_TOL, guide: Solution | None = None) -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
 
     Args:
@@ -106,6 +106,13 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             law below which a point is reported on it (``Increment.switches``,
             :mod:`signorini.sensitivity.nonsmooth`); None: no report (the coarse
             levels of a coarse-to-fine start).
+        guide: a solve of the same problem on a coarser mesh along the same load
+            steps (:func:`signorini.multilevel.solve_coarse_to_fine`). Increment
+            n+1 then starts from w_n + P(w^c_{n+1} - w^c_n), P the interpolation
+            to this mesh (:class:`~signorini.multilevel.Prolongation`), the first
+            from P(w^c_1) unless ``initial`` is given; an increment whose start or
+            end time is not one of the guide's (after a step cut) uses the
+            predictor of ``options``. Only the start changes, not the result.
 
     Returns:
         A :class:`~signorini.solution.Solution` with every converged increment;
@@ -127,11 +134,12 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
                          f"{switch_tol!r}")
     with openblas_single_thread():
         return _solve(problem, steps, sensitivities, options, solver, label, initial,
-                      ddm_factorization, until, int(checkpoint), bool(keep_factors), switch_tol)
+                      ddm_factorization, until, int(checkpoint), bool(keep_factors), switch_tol,
+                      guide)
 
 
 def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_factorization,
-           until, checkpoint, keep_factors, switch_tol):
+           until, checkpoint, keep_factors, switch_tol, guide):
     if not (isinstance(until, (int, float)) and 0.0 < until <= 1.0):
         raise InputError(f"until must be a load factor in (0, 1], got {until!r}")
     if ddm_factorization not in ("exact", "reuse"):
@@ -173,6 +181,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         if initial.shape != (model.n_dof,) or not np.all(np.isfinite(initial)):
             raise InputError(f"initial must be a finite array of shape ({model.n_dof},) (one value "
                              f"per unknown), got shape {initial.shape}")
+    guides = None if guide is None else _Guide(guide, model)
     dt, cuts, total_cuts = dt_nominal, 0, 0
 
     def fail(message):
@@ -190,19 +199,28 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         if model.prescribed.size:
             w_trial[model.prescribed] = np.asarray(model.prescribed_values(params, t_new))
         ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t_new))[model.free]))
-        started = initial is not None and not sol.increments and t == 0.0
-        # linear extrapolation of the last two converged states (quadratic through three
-        # was measured worse: 5.5 instead of 3.0 iterations per increment, frictional
+        first = not sol.increments and t == 0.0
+        started = first and initial is not None
+        # a coarser solve of the same path: w_n + P(w^c_{n+1} - w^c_n)
+        guided = guides is not None and not started and guides.covers(t, t_new, first)
+        # else linear extrapolation of the last two converged states (quadratic through
+        # three was measured worse: 5.5 instead of 3.0 iterations per increment, frictional
         # Hertz 60k DOFs, 10 increments; zones growing like sqrt(t) are not smooth in t)
-        predicted = not started and options.predictor == "extrapolate" and w_prev is not None
-        if started or predicted:
+        predicted = (not started and not guided and options.predictor == "extrapolate"
+                     and w_prev is not None)
+        if started or guided or predicted:
             # the reference norm of the convergence test is that of the unpredicted start
             # (the last state under the new load), so that a better start does not make
             # the test stricter (measured: forging 40x80 then stagnated at rtol 1e-11)
             R0 = np.asarray(model._residual(jnp.asarray(w_trial), params, t_new, state_n))[model.free]
             ref = max(ref, float(np.linalg.norm(R0 * weights[model.free])))
-            w_trial[model.free] = (initial if started else
-                                   w + (t_new - t) / (t - t_prev) * (w - w_prev))[model.free]
+            if started:
+                start = initial
+            elif guided:
+                start = guides.start(t, t_new, w, first)
+            else:
+                start = w + (t_new - t) / (t - t_prev) * (w - w_prev)
+            w_trial[model.free] = start[model.free]
         try:
             w_trial, R, blocks, last_fac = newton(model, model.pattern, lin, w_trial, params,
                                                   t_new, state_n, options, weights, ref, steplog)
@@ -294,6 +312,37 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     sol.status = "converged"
     progress.close("converged")
     return sol
+
+
+class _Guide:
+    """The increments of a coarser solve of the same path, interpolated to this
+    model when first needed (one sparse product each)."""
+
+    def __init__(self, guide, model):
+        from .multilevel import Prolongation
+
+        if not isinstance(guide, Solution):
+            raise InputError(f"guide must be a Solution of the same problem on a coarser mesh "
+                             f"(signorini.multilevel.solve_coarse_to_fine), got {type(guide).__name__}")
+        self.prolong = Prolongation(guide.model, model)
+        self.w = {round(inc.t, 12): inc.w for inc in guide.increments}
+        self.cache: dict = {}
+
+    def covers(self, t, t_new, first) -> bool:
+        return round(t_new, 12) in self.w and (first or round(t, 12) in self.w)
+
+    def _at(self, t):
+        key = round(t, 12)
+        return self.cache[key] if key in self.cache else self.prolong(self.w[key])
+
+    def start(self, t, t_new, w, first):
+        end = self._at(t_new)
+        if first:
+            self.cache = {round(t_new, 12): end}
+            return end
+        begin = self._at(t)
+        self.cache = {round(t_new, 12): end}  # the next increment begins here
+        return w + (end - begin)
 
 
 def _own_factor(lin: TangentSolver, K):

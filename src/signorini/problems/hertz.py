@@ -203,21 +203,20 @@ def coarse_levels(refine: int, n_fine: int = 24) -> list[tuple[int, int]]:
 
 
 def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options, solver):
-    """(initial, levels): the start of the first increment of ``pb`` from the
-    meshes ``build(refine, n_fine)`` of :func:`coarse_levels`, solved coarse to
-    fine to the end of that increment; (None, []) without a coarser mesh. A
-    failing coarse solve only means no coarse start (logged, and recorded in
-    ``levels``)."""
-    from ..multilevel import prolong, solve_coarse_to_fine
+    """(guide, levels): the meshes ``build(refine, n_fine)`` of
+    :func:`coarse_levels`, solved coarse to fine along the whole load path, the
+    finest of them a ``guide`` for ``solve(pb, guide=...)``; (None, []) without
+    a coarser mesh. A failing coarse level guides only over the increments it
+    converged (recorded in ``levels``)."""
+    from ..multilevel import solve_coarse_to_fine
 
     coarse = [build(r, n) for r, n in coarse_levels(refine, n_fine)]
     if not coarse:
         return None, []
     try:
-        csol, levels = solve_coarse_to_fine(coarse, steps=steps, options=options, solver=solver,
-                                            whole_path=False)
-        return prolong(csol, pb), levels
-    except SolverError as e:
+        return solve_coarse_to_fine(coarse, steps=steps, options=options, solver=solver,
+                                    whole_path=False)
+    except SolverError as e:  # not a Newton failure (those guide as far as they got)
         log.info("coarse start failed (%s); Newton starts from the undeformed state", e)
         return None, [{"failed": str(e)}]
 
@@ -261,15 +260,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": fine_cell_size(pb),
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
-    initial, levels = None, []
+    guide, levels = None, []
     if coarse_start:
-        initial, levels = coarse_start_for(
+        guide, levels = coarse_start_for(
             pb, lambda r, n: hertz_problem(params, refine=r, n_fine=n, method=method,
                                            finite_strain=finite_strain, size=size, zone=zone),
             refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           sensitivities=sensitivities, options=options, solver=solver,
-                          initial=initial)
+                          guide=guide)
     t_solve = clock() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]
@@ -293,7 +292,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         for n in sensitivities:
             fd = finite_difference(pb, n, lambda s: s.contact()["p_N"][inner], steps=steps,
                                    options=options, rel_step=fd_step, solver=solver,
-                                   initial=sol.increments[0].w if coarse_start else None)
+                                   guide=sol if coarse_start else None)
             ddm_fd[n] = max_rel_diff(c[f"dp_N_d{n}"][inner], fd)
 
     xa = np.linspace(0, 1.5 * an["a"], 400)

@@ -184,15 +184,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": h,
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
-    initial, coarse = None, []
+    guide, coarse = None, []
     if coarse_start:
-        initial, coarse = hertz.coarse_start_for(
+        guide, coarse = hertz.coarse_start_for(
             pb, lambda r, n: hertz_friction_problem(params, refine=r, n_fine=n, size=size, zone=zone,
                                                     finite_strain=finite_strain),
             refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz_friction", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           sensitivities=sensitivities, options=options, solver=solver,
-                          initial=initial)
+                          guide=guide)
     t_solve = clock() - t0
 
     adj = None
@@ -239,7 +239,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
                 return np.concatenate([c["p_N"][inner], c["p_T"][inner]])
 
             fd = finite_difference(pb, n, q, steps=steps, options=options, rel_step=fd_step,
-                                   solver=solver, initial=sol.increments[0].w if coarse_start else None)
+                                   solver=solver, guide=sol if coarse_start else None)
             c3 = levels[-1]["contact"]
             ddm_fd[n] = max_rel_diff(np.concatenate([c3[f"dp_N_d{n}"][inner], c3[f"dp_T_d{n}"][inner]]), fd)
 
