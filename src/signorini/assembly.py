@@ -3,7 +3,8 @@
 The sparsity pattern is computed once per model from the DOF maps of all
 blocks (elements and contact nodes); every Newton iteration only scatters the
 block values into the fixed CSR data array (``np.bincount`` with a precomputed
-map) and picks the free-free part by a precomputed index.
+map) and picks the free-free part by a precomputed index; an element block
+array passed again unchanged is not scattered again.
 """
 
 from __future__ import annotations
@@ -34,10 +35,15 @@ class SparsityPattern:
             rows.append(r[m])
             cols.append(c[m])
             keep.append(m)
+        sizes = [int(m.sum()) for m in keep]
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         self._keep = np.concatenate(keep)
         key = rows * self.n + cols
         uniq, self._map = np.unique(key, return_inverse=True)
+        # per block group: (mask of its kept entries, their CSR positions)
+        ends = np.cumsum(sizes)
+        self._groups = [(m, self._map[e - k: e]) for m, k, e in zip(keep, sizes, ends)]
+        self._first = (None, None)  # (block array, its CSR contribution): reused while unchanged
         self.nnz = int(uniq.size)
         r, c = np.divmod(uniq, self.n)
         self.indices = c.astype(np.int32)
@@ -46,7 +52,18 @@ class SparsityPattern:
         self.indptr = np.cumsum(self.indptr).astype(np.int32 if self.nnz < 2**31 else np.int64)
 
     def assemble(self, blocks: list[np.ndarray]) -> sp.csr_matrix:
-        """CSR matrix (n_free, n_free) from block values in the order of ``block_dofs``."""
-        vals = np.concatenate([b.reshape(-1) for b in blocks])[self._keep]
-        data = np.bincount(self._map, weights=vals, minlength=self.nnz)
+        """CSR matrix (n_free, n_free) from block values in the order of ``block_dofs``.
+
+        The first group (the elements) is scattered once and its contribution
+        kept while the same array is passed again: a linear body's element
+        stiffness is one array for the whole solve (``Model.element_stiffness``),
+        so an iteration then scatters only the contact blocks (1 ms instead of
+        5 ms at 56k DOFs)."""
+        first = blocks[0]
+        if self._first[0] is not first:
+            m, pos = self._groups[0]
+            self._first = (first, np.bincount(pos, weights=first.reshape(-1)[m], minlength=self.nnz))
+        data = self._first[1].copy()
+        for b, (m, pos) in zip(blocks[1:], self._groups[1:]):
+            np.add.at(data, pos, b.reshape(-1)[m])
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))

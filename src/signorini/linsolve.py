@@ -375,6 +375,7 @@ class Pardiso(LinearSolver):
         self.analyses = 0  # symbolic analyses (phase 11), including re-analyses
         self.reanalyses = 0  # analyses redone because refinement could not repair a kept one
         self.factorizations = 0
+        self.perturbed_pivots = 0  # summed over the numeric factorisations (iparm(14))
 
     @property
     def _iparm(self) -> np.ndarray:
@@ -397,23 +398,35 @@ class Pardiso(LinearSolver):
                 self._upper.popitem(last=False)
         return up[2], up[3], up[4]
 
-    def _handle(self, mtype, n, indptr, indices, a) -> tuple[_Handle, bool]:
+    @staticmethod
+    def _csr(K):
+        A = K.tocsr()
+        return A if A.has_sorted_indices else A.sorted_indices()
+
+    def _handle(self, mtype, n, indptr, indices, values) -> tuple[_Handle, bool]:
         for key, h in self._handles.items():
             if h.matches(mtype, n, indptr, indices):
                 self._handles.move_to_end(key)
                 return h, False
         h = _Handle(self._f, mtype, n, indptr, indices)
-        h.analyse(a)
+        h.analyse(values())
         self.analyses += 1
         self._handles[id(h)] = h
         while len(self._handles) > self.MAX_PATTERNS:
             self._handles.popitem(last=False)[1].release()
         return h, True
 
-    def factorize(self, K, symmetric=False):
-        A = K.tocsr()
-        if not A.has_sorted_indices:
-            A = A.sorted_indices()
+    def factorize(self, K, symmetric=False, analysis=None):
+        """Numeric factorisation of K; the first one of a pattern also analyses it.
+
+        ``analysis``: optional ``() -> matrix`` of the same pattern whose values a
+        symmetric analysis uses instead of K's (its scaling and weighted matching
+        are kept for every later factorisation of the pattern). The model passes
+        its tangent with every contact node closed (``Model.analysis_tangent``):
+        the 2x2 pivots chosen for it suit every active set, whereas an analysis
+        of the first tangent perturbs one pivot per node that changes state
+        later (docs/theory.md §10.1)."""
+        A = self._csr(K)
         n = A.shape[0]
         if symmetric:
             mask, indptr, indices = self._upper_triangle(A)
@@ -422,10 +435,28 @@ class Pardiso(LinearSolver):
             a, indptr, indices, mtype = np.ascontiguousarray(A.data), A.indptr, A.indices, 11
         if np.any(np.diff(indptr) == 0):
             raise SingularTangentError("the tangent has an empty row (singular)")
-        h, fresh = self._handle(mtype, n, indptr, indices, a)
+
+        other = []  # set when the analysis used other values than K's
+
+        def analysis_values():
+            # symmetric only: the general LU's matching pairs each multiplier row with
+            # one column, which no single active set suits (measured: as many perturbed
+            # pivots, ~50 per factorisation on the frictional Hertz at 60k, either way)
+            B = None if analysis is None or not symmetric else analysis()
+            if B is None:
+                return a
+            B = self._csr(B)
+            if not (np.array_equal(B.indptr, A.indptr) and np.array_equal(B.indices, A.indices)):
+                return a  # not the same pattern: analyse with K's own values
+            other.append(True)
+            return np.ascontiguousarray(B.data[mask])
+
+        h, fresh = self._handle(mtype, n, indptr, indices, analysis_values)
+        fresh = fresh and not other  # an analysis of other values may still need K's own
         h.a = a
         h.call(22, a)
         self.factorizations += 1
+        self.perturbed_pivots += int(h.iparm[13])
         h.generation += 1
 
         def solver_of(generation):
@@ -551,14 +582,17 @@ class TangentSolver:
     first tangent factorised, and that choice is kept for the whole path.
     """
 
-    def __init__(self, solver: LinearSolver, symmetric_candidate: bool):
+    def __init__(self, solver: LinearSolver, symmetric_candidate: bool, analysis=None):
         self.solver = solver
         self._candidate = symmetric_candidate
         self.symmetric: bool | None = None
+        self._analysis = analysis  # () -> tangent to analyse the pattern with (PARDISO)
 
     def factorize(self, K: sp.spmatrix) -> Factor:
         if self.symmetric is None:
             self.symmetric = bool(self._candidate and is_symmetric(K))
             log.debug("tangent factorised as %s by %s",
                       "symmetric" if self.symmetric else "unsymmetric", self.solver.describe())
+        if self._analysis is not None and isinstance(self.solver, Pardiso):
+            return self.solver.factorize(K, symmetric=self.symmetric, analysis=self._analysis)
         return self.solver.factorize(K, symmetric=self.symmetric)

@@ -415,6 +415,33 @@ class Model:
         R, blocks = self._local(w, params, t, state_n, cases, Ke)
         return np.asarray(R), [Ke_np] + [np.asarray(b) for b in blocks[1:]]
 
+    def analysis_tangent(self, params, state_0=None):
+        """Free-free tangent at the reference state with every contact node closed
+        (and sticking), the values a sparse solver should analyse the pattern with:
+        the pivots it then chooses suit any active set (docs/theory.md §10.1).
+
+        Each normal multiplier is set just past the switch, lam_N = -eps_N g - delta
+        (lam^_N = -delta, delta = 1e-9 of the largest eps_N |g|): closed, with a
+        negligible curvature term lam^_N d2g of finite kinematics. None if the
+        model has no multipliers or a normal multiplier row does not come out
+        closed (zero diagonal)."""
+        lam_n = [s.lam_offset + s.n_mult * np.arange(s.nodes.size) for s in self.surfaces if s.n_mult]
+        if not lam_n:
+            return None
+        w = np.zeros(self.n_dof)
+        for i, s in enumerate(self.surfaces):
+            if s.n_mult:
+                eps = float(np.ravel(s.contact.method.row_scale(s.contact.method.values(params)))[0])
+                g = np.asarray(self._fields(jnp.asarray(w), params, 0.0, i)["gap"])
+                lam = np.zeros((s.nodes.size, s.n_mult))
+                lam[:, 0] = -eps * g - 1e-9 * (1.0 + eps * float(np.max(np.abs(g))))
+                w[s.lam_offset: s.lam_offset + lam.size] = lam.ravel()
+        _, blocks = self.local_tangents(w, params, 0.0, state_0)
+        K = self.pattern.assemble(blocks)
+        if not np.all(K.diagonal()[np.searchsorted(self.free, np.concatenate(lam_n))] == 0.0):
+            return None
+        return K
+
     def element_parameters(self) -> set[str] | None:
         """Names on which the internal forces depend through the material or the
         shape (None: unknown, a material value is a function of the parameters)."""

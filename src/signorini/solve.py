@@ -157,7 +157,10 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
                              "signorini.solve (use AugmentedLagrangian for the single-Newton method)")
     params = as_jax(problem.params)
     model.check(problem.params)
-    lin = TangentSolver(get_solver(solver), symmetric_candidate=not model.has_history)
+    # a pattern seen for the first time is analysed with every contact node closed
+    lin = TangentSolver(get_solver(solver), symmetric_candidate=not model.has_history,
+                        analysis=lambda: model.analysis_tangent(
+                            params, model.initial_state(np.zeros(model.n_dof), params)))
     ddm = ddm_for(model, names)
     weights = model.convergence_weights(params)
 
