@@ -80,6 +80,7 @@ class Model:
         self.linear_elements = (bool(getattr(p.material, "linear", False)) and not self.n_state
                                 and isinstance(self.formulation, element.Standard))
         self._ke = None  # (parameter values, Ke as JAX array, Ke as NumPy array)
+        self._fixed_groups = None  # (distinct Fixed, index of each prescribed DOF's)
         self.pattern = SparsityPattern(layout.block_dofs(), layout.n_dof, layout.free)
         self.fext = jax.jit(self.external_forces)
         self.cache: dict = {}
@@ -217,7 +218,15 @@ class Model:
         fixed = self.layout.prescribed_fixed
         if not len(fixed):
             return jnp.zeros(0)
-        return jnp.stack([jnp.asarray(resolve(f.value, params), dtype=float) * f.ramp(t) for f in fixed])
+        if self._fixed_groups is None:  # one value per Fixed, broadcast to its DOFs
+            pos: dict = {}
+            for f in fixed:
+                pos.setdefault(id(f), (len(pos), f))
+            self._fixed_groups = ([f for _, f in pos.values()],
+                                  np.array([pos[id(f)][0] for f in fixed]))
+        groups, index = self._fixed_groups
+        vals = jnp.stack([jnp.asarray(resolve(f.value, params), dtype=float) * f.ramp(t) for f in groups])
+        return vals[index]
 
     def _contact_inputs(self, s, X, u, lam, params, t):
         """Per-node inputs of a surface: positions x, multipliers, areas A, obstacle

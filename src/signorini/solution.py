@@ -263,11 +263,12 @@ class Solution:
             if key is not None:
                 cache[(key, with_state)] = (val_fn, jvp_fn)
         extra = (state,) if with_state else ()
-        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, inc.t, *extra))
+        t = np.float64(inc.t)  # one type for t whatever the caller stored: one compilation
+        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, t, *extra))
         if not with_sensitivities or not self.names:
             return val, {}
         e = unit_tangents(self._jp, self.names)
         wd = jnp.asarray(np.stack([inc.sens[n] for n in self.names]))
-        d = jvp_fn(w, self._jp, inc.t, extra, wd, e, (sdot,) if with_state else ())
+        d = jvp_fn(w, self._jp, t, extra, wd, e, (sdot,) if with_state else ())
         return val, {n: jax.tree_util.tree_map(lambda v, k=k: np.asarray(v[k]), d)
                      for k, n in enumerate(self.names)}
