@@ -164,8 +164,9 @@ def _adjoint_option(p, response: str):
 
 def _coarse_start_option(p):
     p.add_argument("--no-coarse-start", action="store_true",
-                   help="start the first increment's Newton from the undeformed state instead of "
-                        "the interpolated solution of coarser meshes (the result is the same)")
+                   help="start Newton from the undeformed state (later increments from the "
+                        "extrapolating predictor) instead of from coarser meshes solved along the "
+                        "same load path, interpolated (the result is the same)")
 
 
 def _solver_options(p):
@@ -366,10 +367,10 @@ def main(argv=None) -> int:
 
 
 def _fmt_coarse(levels) -> str:
-    """' (started from 1705 DOFs: 6 it, 3634 DOFs: 1 it)' for a coarse-to-fine start."""
+    """' (guided by 1705 DOFs: 6 it, 3634 DOFs: 1 it)' for a coarse-to-fine start."""
     if not isinstance(levels, list) or not levels or "dofs" not in levels[0]:
         return ""
-    return " (started from " + ", ".join(
+    return " (guided by " + ", ".join(
         f"{lv['dofs']} DOFs: {sum(lv['newton_iterations'])} it" for lv in levels) + ")"
 
 
