@@ -180,6 +180,28 @@ def test_assembly_reuses_an_unchanged_element_block():
         assert abs(K - fresh(bl)).max() <= 1e-12 * abs(K).max()
 
 
+@pytest.mark.parametrize("friction", [False, True])
+def test_kept_stiffness_derivative_gives_the_jvp_pseudo_load(friction, monkeypatch):
+    """Along a load path a linear body's element pseudo-load is (dK_e/dphi) u_e +
+    K_e du_e/dphi with dK_e/dphi computed once: the same sensitivities as the JVP
+    of the element kernels every increment, for material, shape-free contact and
+    prescribed-motion parameters."""
+    from signorini.sensitivity.ddm import DDM
+    from test_adjoint import pressed_block
+
+    pb = pressed_block(friction)
+    names = ["d", "s", "E", "nu", "R"] + (["mu"] if friction else [])
+    o = sg.NewtonOptions(rtol=1e-12)
+    kept = sg.solve(pb, steps=4, sensitivities=names, options=o, solver="superlu")
+    ddm = sg.solve.__globals__["ddm_for"](kept.model, names)
+    assert ddm._dke is not None and ddm._dke[1] == ("E", "nu")  # dK_e/dphi was kept
+    monkeypatch.setattr(DDM, "_linear_pseudo", lambda *a: False)  # the JVP every increment
+    jvp = sg.solve(pb, steps=4, sensitivities=names, options=o, solver="superlu")
+    for a, b in zip(kept.increments, jvp.increments):
+        for n in names:
+            assert np.max(np.abs(a.sens[n] - b.sens[n])) <= 1e-10 * np.max(np.abs(b.sens[n])), n
+
+
 # --------------------------------------------------------- what Newton starts from
 def test_linear_body_stiffness_once_equals_kernel():
     pb = hertz_friction_problem(refine=0)
@@ -322,6 +344,30 @@ def test_guide_covers_only_its_own_increments():
     assert (P.matrix != sp.identity(P.matrix.shape[0])).nnz == 0
     with pytest.raises(sg.InputError, match="guide must be a Solution"):
         sg.solve(pb, guide=plain.increments[0].w)
+
+
+def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
+    """A coarse level whose Newton fails is recorded as failed; the increments it
+    converged still guide the next mesh, the rest use the predictor, and the
+    fine path is the one from rest."""
+    solve_module = sys.modules["signorini.solve"]  # the module (the package exports the function)
+    real = solve_module.solve
+    coarse, fine = hertz_friction_problem(refine=0, n_fine=12), hertz_friction_problem(refine=0)
+
+    def failing(pb, **kw):
+        if pb is coarse:  # converges to t = 0.5, then fails
+            part = real(pb, **{**kw, "until": 0.5})
+            raise sg.ConvergenceError("no convergence at t=0.667 (test)", partial=part)
+        return real(pb, **kw)
+
+    monkeypatch.setattr(solve_module, "solve", failing)
+    o = sg.NewtonOptions(rtol=1e-10)
+    sol, levels = solve_coarse_to_fine([coarse, fine], steps=6, options=o, sensitivities=["mu"])
+    assert "test" in levels[0]["failed"] and len(levels[0]["newton_iterations"]) == 3
+    assert "failed" not in levels[1] and len(sol.increments) == 6
+    plain = real(fine, steps=6, options=o, sensitivities=["mu"])
+    for a, b in zip(sol.increments, plain.increments):
+        assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["mu"], b.sens["mu"]) < 1e-8
 
 
 def test_prolongation_reproduces_affine_fields():

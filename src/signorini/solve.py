@@ -276,7 +276,8 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
             w_dot = None
             if fac is not None:
                 t1 = time.perf_counter()
-                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot)
+                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot,
+                                          reuse_stiffness=steps >= 3)
                 if reused and fac.backward_error > REFINE_TOL:
                     w_dot, reused = None, False
             if w_dot is None:
@@ -286,7 +287,8 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
                     raise fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
                                f"sensitivities are undefined: {e}") from None
                 t1 = time.perf_counter()
-                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot)
+                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot,
+                                          reuse_stiffness=steps >= 3)
             timing["factorization"] = t1 - t0
             timing["reused_factorization"] = reused
             timing["refinements"] = fac.refinements

@@ -51,13 +51,23 @@ class DDM:
         # the element history.
         el = model.element_parameters()
         self._element_names = None if (el is None or model.n_state) else el
+        # A linear body's internal forces are K_e(phi) u_e: along a load path their
+        # pseudo-load is (dK_e/dphi_k) u_e + K_e du_e/dphi_k, with dK_e/dphi_k
+        # computed once per parameter values (``reuse_stiffness``)
+        self._dke_fn = jax.jit(jax.vmap(lambda p, e: jax.jvp(model._stiffness, (p,), (e,))[1],
+                                        (None, 0)))
+        self._dke = None  # (key, names, (n, n_cells, 8, 8) NumPy)
 
-    def solve(self, factor, w, params, t, state_n=None, state_dot_n=None):
+    def solve(self, factor, w, params, t, state_n=None, state_dot_n=None,
+              reuse_stiffness: bool = False):
         """Sensitivities dw/dphi (n_names, n_dof) at a converged increment.
 
         Args:
             factor: factorisation of the free-free tangent at ``w``.
             state_dot_n: sensitivities of the previous state (batched over names).
+            reuse_stiffness: for a linear body, compute dK_e/dphi once and keep it
+                for the next increments (twice the cost of one element pseudo-load,
+                then a batched product per increment: worth it on a load path).
 
         Returns:
             (w_dot, timings) with w_dot (n_names, n_dof) including the prescribed DOFs.
@@ -70,13 +80,14 @@ class DDM:
             w_dot[:, m.prescribed] = np.asarray(self._wp_dot(params, t, e))
         # friction: the branch of every node fixed as in the converged tangent
         cases = m._cases(w, params, t, state_n) if m.has_contact_history else None
-        P = self._pseudo_loads(w, params, t, state_n, cases, w_dot, e, state_dot_n)
+        P = self._pseudo_loads(w, params, t, state_n, cases, w_dot, e, state_dot_n, reuse_stiffness)
         t1 = time.perf_counter()
         w_dot[:, m.free] = -factor.solve(np.ascontiguousarray(P[:, m.free].T)).reshape(m.free.size, -1).T
         t2 = time.perf_counter()
         return w_dot, {"pseudo_load": t1 - t0, "back_substitution": t2 - t1}
 
-    def _pseudo_loads(self, w, params, t, state_n, cases, w_dot, e, state_dot_n) -> np.ndarray:
+    def _pseudo_loads(self, w, params, t, state_n, cases, w_dot, e, state_dot_n,
+                      reuse_stiffness=False) -> np.ndarray:
         """(n_names, n_dof) pseudo-loads; element kernels only for the names that
         need them."""
         m = self.model
@@ -91,6 +102,36 @@ class DDM:
         P = np.array(self._pseudo["rest"](w, params, t, state_n, cases, wd, e, state_dot_n))
         if el.any():
             k = np.nonzero(el)[0]
+            if reuse_stiffness and m.linear_elements and self._linear_pseudo(P, k, w, params, w_dot):
+                return P
             sub = jax.tree_util.tree_map(lambda a: a[k], (wd, e, state_dot_n))
             P[k] += np.asarray(self._pseudo["elements"](w, params, t, state_n, cases, *sub))
         return P
+
+    #: largest dK_e/dphi kept (bytes); above it the pseudo-load is a JVP every increment
+    DKE_BUDGET = 512 * 2**20
+
+    def _linear_pseudo(self, P, k, w, params, w_dot) -> bool:
+        """Add (dK_e/dphi_k) u_e + K_e du_e/dphi_k to P[k] (a linear body); False
+        if dK_e/dphi would exceed :attr:`DKE_BUDGET`."""
+        m = self.model
+        mat = [j for j in k if self.names[j] in self._element_names]
+        if len(mat) * m.edofs.size * m.edofs.shape[1] * 8 > self.DKE_BUDGET:
+            return False
+        key = tuple(sorted((n, float(v)) for n, v in params.items()))
+        names = tuple(self.names[j] for j in mat)
+        if mat and (self._dke is None or self._dke[:2] != (key, names)):
+            e = unit_tangents(params, list(names))
+            self._dke = (key, names, np.asarray(self._dke_fn(params, e)))
+        _, Ke = m.element_stiffness(params)
+        ue = np.asarray(w)[m.edofs]
+        flat = m.edofs.ravel()
+        for j in k:
+            re = np.zeros(m.edofs.shape)
+            if j in mat:
+                re += np.einsum("eij,ej->ei", self._dke[2][mat.index(j)], ue)
+            wde = w_dot[j][m.edofs]
+            if np.any(wde):
+                re += np.einsum("eij,ej->ei", Ke, wde)
+            P[j] += np.bincount(flat, weights=re.ravel(), minlength=m.n_dof)
+        return True
