@@ -163,7 +163,8 @@ def test_analysis_with_every_contact_node_closed_avoids_perturbed_pivots():
 
 
 def test_assembly_reuses_an_unchanged_element_block():
-    """An element array passed again is not scattered again; a new one is."""
+    """A read-only element array passed again is not scattered again; a new or a
+    writable one is."""
     pb = hertz.hertz_problem(n_fine=8, size=8)
     m, p = model_for(pb), as_jax(pb.params)
     w = np.zeros(m.n_dof)
@@ -175,6 +176,7 @@ def test_assembly_reuses_an_unchanged_element_block():
     K1 = m.pattern.assemble(blocks)
     contact = [b * 3.0 for b in blocks[1:]]
     K2 = m.pattern.assemble([blocks[0]] + contact)  # same element array: kept part
+    assert not blocks[0].flags.writeable and m.pattern._first[0] is blocks[0]
     K3 = m.pattern.assemble([blocks[0] * 2.0] + contact)  # a new one
     for K, bl in ((K1, blocks), (K2, [blocks[0]] + contact), (K3, [blocks[0] * 2.0] + contact)):
         assert abs(K - fresh(bl)).max() <= 1e-12 * abs(K).max()
@@ -321,9 +323,11 @@ def test_coarse_meshes_guide_every_increment_of_a_frictional_path():
 
 
 def test_guide_covers_only_its_own_increments():
-    """Increments whose ends are not times of the guide (other steps, a guide that
-    stopped early) fall back to the predictor; a guide of the same mesh at other
-    parameters (finite-difference re-solves) is interpolated by the identity."""
+    """Between the guide's load factors (other steps, as after a step cut) the
+    guide is interpolated in t; past the end of a guide that stopped early the
+    predictor takes over; a guide of the same mesh at other parameters
+    (finite-difference re-solves) is interpolated by the identity. Only the
+    start changes."""
     from signorini.multilevel import Prolongation
 
     pb = hertz_friction_problem(refine=0)
@@ -368,6 +372,28 @@ def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
     plain = real(fine, steps=6, options=o, sensitivities=["mu"])
     for a, b in zip(sol.increments, plain.increments):
         assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["mu"], b.sens["mu"]) < 1e-8
+
+
+def test_a_coarse_level_that_converges_nothing_keeps_the_guide_before(monkeypatch):
+    """Three levels, the middle one failing in its first increment: the finest is
+    guided by the coarsest (before: by nothing)."""
+    solve_module = sys.modules["signorini.solve"]
+    real = solve_module.solve
+    pbs = [hertz_friction_problem(refine=0, n_fine=8), hertz_friction_problem(refine=0, n_fine=12),
+           hertz_friction_problem(refine=0)]
+    guides = []
+
+    def failing(pb, **kw):
+        guides.append(kw.get("guide"))
+        if pb is pbs[1]:
+            raise sg.ConvergenceError("no convergence at t=0.25 (test)", partial=None)
+        return real(pb, **kw)
+
+    monkeypatch.setattr(solve_module, "solve", failing)
+    sol, levels = solve_coarse_to_fine(pbs, steps=4, options=sg.NewtonOptions(rtol=1e-10))
+    assert "failed" in levels[1] and levels[1]["newton_iterations"] == []
+    assert guides[0] is None and guides[1] is not None and guides[2] is guides[1]
+    assert len(sol.increments) == 4
 
 
 def test_prolongation_reproduces_affine_fields():

@@ -67,7 +67,7 @@ class Factor:
         self._norm = {}
         self.refinements = 0  # refinement back-substitutions done so far
         self.backward_error = 0.0  # of the last solve (worst column)
-        self._last = (np.zeros(1), np.ones(1))  # (residual, right-hand side) of the last solve
+        self.relative_residual = 0.0  # max over columns of ||K x - b|| / ||b|| of the last solve
         self.nbytes: int | None = None  # memory of the factors, where the solver reports it
 
     def _backward_error(self, r, x, b, transpose=False) -> float:
@@ -108,6 +108,7 @@ class Factor:
                 self._transposed = self._transpose_factor()
             x = self._transposed.solve(b)
             self.backward_error = self._transposed.backward_error
+            self.relative_residual = self._transposed.relative_residual
             return x
         x = self._solve_refined(b, transpose)
         if self.backward_error > REFINE_TOL and self._refactor is not None:
@@ -137,16 +138,10 @@ class Factor:
             if stalled:
                 break
         self.backward_error = eta
-        self._last = (r, b)  # for relative_residual, computed only when asked for
+        r2, b2 = r.reshape(r.shape[0], -1), b.reshape(b.shape[0], -1)  # column norms by einsum:
+        nr, nb = np.einsum("ij,ij->j", r2, r2), np.einsum("ij,ij->j", b2, b2)  # 1 ms, not 5 (225k)
+        self.relative_residual = float(np.sqrt(np.max(nr / np.maximum(nb, 1e-300))))
         return x
-
-    @property
-    def relative_residual(self) -> float:
-        """max over columns of ||K x - b|| / ||b|| of the last solve."""
-        r, b = self._last
-        r, b = r.reshape(r.shape[0], -1), b.reshape(b.shape[0], -1)
-        nr, nb = np.sqrt(np.einsum("ij,ij->j", r, r)), np.sqrt(np.einsum("ij,ij->j", b, b))
-        return float(np.max(nr / np.maximum(nb, 1e-300)))
 
     def refined_for(self, K: sp.spmatrix) -> "Factor":
         """This factorisation used for a nearby matrix K: solves of K by iterative

@@ -430,7 +430,7 @@ class Model:
         the pivots it then chooses suit any active set (docs/theory.md §10.1).
 
         Each normal multiplier is set just past the switch, lam_N = -eps_N g - delta
-        (lam^_N = -delta, delta = 1e-9 of the largest eps_N |g|): closed, with a
+        (lam^_N = -delta, delta = 1e-9 (1 + max eps_N |g|)): closed, with a
         negligible curvature term lam^_N d2g of finite kinematics. None if the
         model has no multipliers or a normal multiplier row does not come out
         closed (zero diagonal)."""

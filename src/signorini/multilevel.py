@@ -150,7 +150,8 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensiti
     no sensitivities, no switch report, its warnings kept in its solution).
 
     A coarse level that fails guides the next one over the increments it
-    converged (recorded as ``failed`` in its level); the finest level's failure
+    converged, or leaves the guide of the level before when that one reaches
+    further (recorded as ``failed`` in its level); the finest level's failure
     is raised.
 
     Returns:
@@ -171,19 +172,24 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensiti
         # coarse levels: no switch-point report (only a result needs it), no warnings issued
         kw = dict(solve_kwargs) if last else {**solve_kwargs, "switch_tol": None}
         level: dict = {}
+        done: list = []
         try:
             with contextlib.nullcontext() if last else checks.silenced():
                 sol = solve(pb, steps=steps, sensitivities=sensitivities if last else (),
                             guide=sol, label=label if last else f"level {k}", **kw)
+            done = list(sol.newton_iterations)
         except ConvergenceError as e:
             if last:
                 raise
-            # what converged still guides the next mesh; the rest uses the predictor
-            sol = e.partial if e.partial is not None and e.partial.increments else None
+            # what converged still guides the next mesh, unless the level before
+            # guides further (then it keeps guiding); the rest uses the predictor
+            part = e.partial if e.partial is not None and e.partial.increments else None
+            done = list(part.newton_iterations) if part is not None else []
+            if part is not None and (sol is None or len(part.increments) >= len(sol.increments)):
+                sol = part
             level["failed"] = str(e)
-            log.info("coarse level %d failed (%s); it guides the next mesh over %d increments",
+            log.info("coarse level %d failed (%s); the next mesh is guided over %d increments",
                      k, e, 0 if sol is None else len(sol.increments))
-        done = list(sol.newton_iterations) if sol is not None else []
         levels.append({"dofs": int(model_for(pb).n_dof), "newton_iterations": done,
                        "time_s": time.perf_counter() - t0, **level})
         log.debug("coarse-to-fine level %d: %d DOFs, %s iterations", k, levels[-1]["dofs"], done)

@@ -110,9 +110,10 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             steps (:func:`signorini.multilevel.solve_coarse_to_fine`). Increment
             n+1 then starts from w_n + P(w^c_{n+1} - w^c_n), P the interpolation
             to this mesh (:class:`~signorini.multilevel.Prolongation`), the first
-            from P(w^c_1) unless ``initial`` is given; an increment whose start or
-            end time is not one of the guide's (after a step cut) uses the
-            predictor of ``options``. Only the start changes, not the result.
+            from P(w^c_1) unless ``initial`` is given; between the guide's load
+            factors (after a step cut) w^c is interpolated linearly in t, and past
+            its last one (a guide that stopped early) the predictor of ``options``
+            is used. Only the start changes, not the result.
 
     Returns:
         A :class:`~signorini.solution.Solution` with every converged increment;
@@ -330,7 +331,8 @@ def _residual(model, w, params, t, state_n) -> np.ndarray:
 
 class _Guide:
     """The increments of a coarser solve of the same path, interpolated to this
-    model when first needed (one sparse product each)."""
+    model when needed (one sparse product each); between the guide's load
+    factors (after a step cut) linear in t, from w = 0 at t = 0."""
 
     def __init__(self, guide, model):
         from .multilevel import Prolongation
@@ -340,14 +342,23 @@ class _Guide:
                              f"(signorini.multilevel.solve_coarse_to_fine), got {type(guide).__name__}")
         self.prolong = Prolongation(guide.model, model)
         self.w = {round(inc.t, 12): inc.w for inc in guide.increments}
+        self.times = np.array(sorted(self.w))
         self.cache: dict = {}
 
     def covers(self, t, t_new, first) -> bool:
-        return round(t_new, 12) in self.w and (first or round(t, 12) in self.w)
+        return bool(self.times.size) and round(t_new, 12) <= self.times[-1]
 
     def _at(self, t):
         key = round(t, 12)
-        return self.cache[key] if key in self.cache else self.prolong(self.w[key])
+        if key in self.cache:
+            return self.cache[key]
+        if key in self.w:
+            return self.prolong(self.w[key])
+        j = int(np.searchsorted(self.times, key))  # times[j-1] < t < times[j]
+        ta = self.times[j - 1] if j > 0 else 0.0
+        wa = self.w[ta] if j > 0 else np.zeros_like(self.w[self.times[0]])
+        theta = (key - ta) / (self.times[j] - ta)
+        return self.prolong((1.0 - theta) * np.asarray(wa) + theta * np.asarray(self.w[self.times[j]]))
 
     def start(self, t, t_new, w, first):
         end = self._at(t_new)

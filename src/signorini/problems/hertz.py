@@ -217,7 +217,8 @@ def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options
         return solve_coarse_to_fine(coarse, steps=steps, options=options, solver=solver,
                                     whole_path=False)
     except SolverError as e:  # not a Newton failure (those guide as far as they got)
-        log.info("coarse start failed (%s); Newton starts from the undeformed state", e)
+        log.info("coarse start failed (%s); Newton starts from the undeformed state and the "
+                 "predictor", e)
         return None, [{"failed": str(e)}]
 
 
