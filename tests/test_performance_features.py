@@ -1,7 +1,9 @@
 """The speed-ups of issue 10 change cost, never results: solver choice, the kept
-symbolic analysis, the symmetric factorisation, the stiffness of linear bodies
-computed once, the extrapolating predictor, the coarse-to-fine start, the
-reused DDM factorisation and the persistent compilation cache."""
+symbolic analysis (of the tangent with every contact node closed), the symmetric
+factorisation, the stiffness of linear bodies computed once (and its parameter
+derivative kept along a path), the extrapolating predictor, the coarse meshes
+guiding a load path, the reused DDM factorisation and the persistent
+compilation cache."""
 
 import os
 import subprocess
