@@ -114,6 +114,29 @@ def test_symmetric_factorisation_only_without_history():
     assert ts.symmetric is False  # a candidate whose tangent is not symmetric
 
 
+def test_symmetry_decided_on_the_local_blocks():
+    """Newton decides symmetry on the blocks K is assembled from: the Hertz blocks
+    are symmetric, the frictional ones not; an asymmetric block falls back to the
+    assembled test (which a symmetric K still passes)."""
+    from signorini.linsolve import blocks_symmetric
+
+    for pb, expected in ((hertz.hertz_problem(n_fine=8, size=8), True),
+                         (hertz_friction_problem(refine=0), False)):
+        m, p = model_for(pb), as_jax(pb.params)
+        st = m.initial_state(np.zeros(m.n_dof), p)
+        w = np.zeros(m.n_dof)
+        for srf in m.surfaces:  # close every node, so that the friction rows couple
+            w[srf.lam_dofs[::srf.n_mult]] = -1.0
+        _, blocks = m.local_tangents(w, p, 0.5, st)
+        assert blocks_symmetric(blocks) is expected
+        assert sg.solve(pb, steps=2).symmetric is expected
+    K = sp.csr_matrix(np.array([[2.0, 1.0], [1.0, 2.0]]))
+    halves = [np.array([[[2.0, 1.0], [0.0, 2.0]]]), np.array([[[0.0, 0.0], [1.0, 0.0]]])]
+    ts = TangentSolver(SuperLU(), symmetric_candidate=True)
+    ts.factorize(K, halves)  # asymmetric blocks, symmetric sum: the assembled test decides
+    assert not blocks_symmetric(halves) and ts.symmetric is True
+
+
 @pytest.mark.parametrize("name", linsolve.available())
 def test_symmetric_and_general_factorisations_agree_in_hertz(name):
     pb = hertz.hertz_problem(n_fine=8, size=8)
