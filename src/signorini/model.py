@@ -424,7 +424,7 @@ class Model:
         R, blocks = self._local(w, params, t, state_n, cases, Ke)
         return np.asarray(R), [Ke_np] + [np.asarray(b) for b in blocks[1:]]
 
-    def analysis_tangent(self, params, state_0=None):
+    def analysis_tangent(self, params):
         """Free-free tangent at the reference state with every contact node closed
         (and sticking), the values a sparse solver should analyse the pattern with:
         the pivots it then chooses suit any active set (docs/theory.md §10.1).
@@ -445,6 +445,7 @@ class Model:
                 lam = np.zeros((s.nodes.size, s.n_mult))
                 lam[:, 0] = -eps * g - 1e-9 * (1.0 + eps * float(np.max(np.abs(g))))
                 w[s.lam_offset: s.lam_offset + lam.size] = lam.ravel()
+        state_0 = self.initial_state(np.zeros(self.n_dof), params)
         _, blocks = self.local_tangents(w, params, 0.0, state_0)
         K = self.pattern.assemble(blocks)
         if not np.all(K.diagonal()[np.searchsorted(self.free, np.concatenate(lam_n))] == 0.0):

@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError, SingularTangentError
-from .linsolve import TangentSolver
 
 log = logging.getLogger("signorini")
 
@@ -204,8 +203,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         steplog.time_assembly += time.perf_counter() - t0
         t0 = time.perf_counter()
         try:
-            fac = solver.factorize(K, blocks) if isinstance(solver, TangentSolver) else \
-                solver.factorize(K)
+            fac = solver.factorize(K, blocks)
         except SingularTangentError as e:
             raise StepFailure(str(e), fatal=(k == 0)) from None
         steplog.time_factorization += time.perf_counter() - t0

@@ -160,8 +160,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     model.check(problem.params)
     # a pattern seen for the first time is analysed with every contact node closed
     lin = TangentSolver(get_solver(solver), symmetric_candidate=not model.has_history,
-                        analysis=lambda: model.analysis_tangent(
-                            params, model.initial_state(np.zeros(model.n_dof), params)))
+                        analysis=lambda: model.analysis_tangent(params))
     ddm = ddm_for(model, names)
     weights = model.convergence_weights(params)
 

@@ -24,7 +24,7 @@ import numpy as np
 from ._jax import jax, jnp
 from .contact.uzawa import UzawaPenalty
 from .errors import ConvergenceError, InputError
-from .linsolve import get_solver
+from .linsolve import TangentSolver, get_solver
 from .newton import NewtonOptions, StepFailure, StepLog, newton
 from .params import as_jax, check_names, unit_tangents
 from .solve import ddm_for, model_for
@@ -88,7 +88,7 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
     check_names(names, problem.params, "sensitivities")
     params = as_jax(problem.params)
     model.check(problem.params)
-    lin = get_solver(solver)
+    lin = TangentSolver(get_solver(solver), symmetric_candidate=False)  # as before: general LU
     s = model.surfaces[0]
     method = s.contact.method
     ddm = ddm_for(model, names)

@@ -112,8 +112,7 @@ class Adjoint:
         m = self.model
         params = {k: v for k, v in pe.items() if k != NODES}
         lin = TangentSolver(get_solver(solver), symmetric_candidate=not m.has_history,
-                            analysis=lambda: m.analysis_tangent(
-                                params, m.initial_state(np.zeros(m.n_dof), params)))
+                            analysis=lambda: m.analysis_tangent(params))
         grad = jax.tree_util.tree_map(jnp.zeros_like, pe)
         G = 0.0
         s_bar = None  # cotangent of the state after increment n
