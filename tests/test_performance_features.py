@@ -229,6 +229,51 @@ def test_kept_stiffness_derivative_gives_the_jvp_pseudo_load(friction, monkeypat
             assert np.max(np.abs(a.sens[n] - b.sens[n])) <= 1e-10 * np.max(np.abs(b.sens[n])), n
 
 
+def test_element_pseudo_load_on_the_parameters_alone_equals_the_full_jvp():
+    """Without prescribed motion the internal-force pseudo-load is the JVP on the
+    element parameters alone (material and shape): the same vector as the JVP
+    with a one-hot tangent on every parameter and on the displacements."""
+    import dataclasses
+
+    from signorini.params import unit_tangents
+    from signorini.sensitivity.ddm import DDM
+    from signorini._jax import jnp
+
+    base = hertz.hertz_problem(n_fine=8)
+    X = base.mesh.nodes
+    V = np.column_stack([X[:, 0] * X[:, 1], np.sin(X[:, 0])])  # a shape field
+    pb = dataclasses.replace(base, shape={**base.shape, "h": V}, params={**base.params, "h": 0.0},
+                             shape_nominal={**base.shape_nominal, "h": 0.0})
+    names = ["E", "nu", "h"]
+    sol = sg.solve(pb, sensitivities=names)
+    m, p = model_for(pb), as_jax(pb.params)
+    ddm = DDM(m, names)
+    assert {"E", "nu", "h"} <= ddm._element_names
+    w = jnp.asarray(sol.increments[-1].w)
+    e = unit_tangents(p, names)
+    full = np.asarray(ddm._pseudo["elements"](w, p, 1.0, None, None, jnp.zeros((3, m.n_dof)), e, None))
+    e_el = {n: e[n] for n in ddm._element_names if n in e}
+    alone = np.asarray(ddm._material_pseudo(w, p, 1.0, e_el))
+    for k in range(3):
+        assert np.max(np.abs(full[k])) > 0
+        assert np.max(np.abs(alone[k] - full[k])) <= 1e-13 * np.max(np.abs(full[k])), names[k]
+
+
+def test_prolongation_is_built_once_per_pair_of_meshes():
+    """A coarse-to-fine solve rebuilt the interpolation every time (75 of 230 ms at
+    56k DOFs): it is now kept by the fine model, per coarse model."""
+    from signorini.multilevel import Prolongation
+
+    cm = model_for(hertz_friction_problem(refine=0, n_fine=12))
+    cm2 = model_for(hertz_friction_problem(refine=0, n_fine=16))
+    fm = model_for(hertz_friction_problem(refine=1))
+    P = Prolongation.between(cm, fm)
+    assert Prolongation.between(cm, fm) is P
+    P2 = Prolongation.between(cm2, fm)
+    assert P2 is not P and P2.matrix.shape == (fm.n_dof, cm2.n_dof)
+    assert abs(P.matrix - Prolongation(cm, fm).matrix).max() == 0.0
+
+
 # --------------------------------------------------------- what Newton starts from
 def test_linear_body_stiffness_once_equals_kernel():
     pb = hertz_friction_problem(refine=0)

@@ -86,7 +86,10 @@ def points_in_body(P: np.ndarray, X: np.ndarray, cells: np.ndarray) -> np.ndarra
 def before_solve(model, params, solution) -> None:
     """Mesh and obstacle checks at the start of a solve (t = 0)."""
     X = np.asarray(model.reference(params))
-    dup = duplicate_nodes(X)
+    kept = model.cache.get("duplicate_nodes")  # (X, result): the same mesh in every solve
+    if kept is None or not np.array_equal(kept[0], X):  # unless shape parameters moved it
+        kept = model.cache["duplicate_nodes"] = (X, duplicate_nodes(X))
+    dup = kept[1]
     if dup.size:
         warn(solution, f"{dup.size} duplicate node(s) (first: node {int(dup[0])} at "
                        f"{X[dup[0]].round(6).tolist()}): coincident nodes that share no cell leave "

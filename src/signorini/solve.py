@@ -339,7 +339,7 @@ class _Guide:
         if not isinstance(guide, Solution):
             raise InputError(f"guide must be a Solution of the same problem on a coarser mesh "
                              f"(signorini.multilevel.solve_coarse_to_fine), got {type(guide).__name__}")
-        self.prolong = Prolongation(guide.model, model)
+        self.prolong = Prolongation.between(guide.model, model)
         self.w = {round(inc.t, 12): inc.w for inc in guide.increments}
         self.times = np.array(sorted(self.w))
         self.cache: dict = {}
