@@ -16,9 +16,10 @@ import warnings
 
 import numpy as np
 
-from ._jax import jax, jnp
+from ._jax import jax, jnp, to_device
 from .errors import InputError, SignoriniWarning
 from .obstacles import Circle
+from .params import resolve
 
 log = logging.getLogger("signorini")
 
@@ -95,12 +96,11 @@ def before_solve(model, params, solution) -> None:
                        f"{X[dup[0]].round(6).tolist()}): coincident nodes that share no cell leave "
                        "the mesh disconnected there; merge them (remove duplicates) unless this "
                        "is intended")
-    w0 = jnp.zeros(model.n_dof)
+    w0 = to_device(np.zeros(model.n_dof))
     for i, s in enumerate(model.surfaces):
         obst = s.contact.obstacle
-        geo = obst.geometry(params, 0.0)
-        if isinstance(obst, Circle):
-            c = np.asarray(geo["c"])
+        if isinstance(obst, Circle):  # the centre at t = 0, in NumPy
+            c = np.array([float(resolve(v, params)) for v in obst.centre])
             if points_in_body(c[None, :], X, model.conn)[0]:
                 raise InputError(
                     f"contact {s.contact.edges!r}: the centre {c.round(6).tolist()} of the circular "
@@ -130,10 +130,10 @@ class IncrementChecks:
     def _snapshot(self, w, t):
         m = self.model
         X = np.asarray(m.reference(self.params))
-        u = np.asarray(w[: 2 * m.n_nodes]).reshape(-1, 2)
+        u = np.asarray(w)[: 2 * m.n_nodes].reshape(-1, 2)
         snap = []
         for i, s in enumerate(m.surfaces):
-            f = m._fields(jnp.asarray(w), self.params, t, i)
+            f = m._fields(to_device(w), self.params, t, i)
             snap.append((X[s.nodes] + u[s.nodes], np.asarray(f["p_N"]) > 0))
         return t, snap
 

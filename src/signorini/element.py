@@ -41,7 +41,7 @@ def shape_gradients(xi):
     """dN/dxi (4, 2) at parent point xi (2,)."""
     dxi = 0.25 * _CORNERS[:, 0] * (1 + _CORNERS[:, 1] * xi[1])
     deta = 0.25 * _CORNERS[:, 1] * (1 + _CORNERS[:, 0] * xi[0])
-    return jnp.stack([dxi, deta], axis=1)
+    return (np if isinstance(xi, np.ndarray) else jnp).stack([dxi, deta], axis=1)
 
 
 #: N and dN/dxi at the Gauss points, (4 gauss, 4 nodes) and (4 gauss, 4 nodes, 2).

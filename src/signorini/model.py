@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from . import element
-from ._jax import jax, jnp
+from ._jax import jax, jnp, to_device
 from .assembly import SparsityPattern
 from .contact.area import nodal_normals
 from .dofs import DofLayout
@@ -70,8 +70,8 @@ class Model:
             c.kinematics == "linear" or (c.kinematics == "auto" and not finite) for c in p.contact]
         self._X0_np = p.mesh.nodes
         self._shape_names = list(p.shape)
-        self._V = {k: jnp.asarray(v) for k, v in p.shape.items()}
-        self._X0 = jnp.asarray(p.mesh.nodes)
+        self._V = {k: to_device(np.asarray(v, dtype=float)) for k, v in p.shape.items()}
+        self._X0 = to_device(np.asarray(p.mesh.nodes, dtype=float))
         self._X0N = [nodal_normals(self._X0_np, s.edges, s.nodes) for s in layout.surfaces]
 
         # linear elastic body (small strain, standard element): its stiffness does not
@@ -88,6 +88,8 @@ class Model:
         self._stiffness = jax.jit(lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1])
         self._residual = jax.jit(self.residual)
         self._cases = jax.jit(self.cases)
+        self._reference = jax.jit(self._reference_impl)
+        self.prescribed_at = jax.jit(self.prescribed_values)  # one program, not an op per Fixed
         self._status = jax.jit(self.contact_status, static_argnums=4)
         self._fields = jax.jit(self.contact_fields, static_argnums=3)
         self._update = jax.jit(self.update)
@@ -197,6 +199,11 @@ class Model:
         """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities (and
         by ``params["nodes"]`` (n_nodes, 2), the shape field of every nodal
         coordinate, when an adjoint gradient asks for it: docs/theory.md §11)."""
+        if not self._shape_names and NODES not in params:
+            return self._X0
+        return self._reference(params)  # compiled: called eagerly by checks and outputs
+
+    def _reference_impl(self, params):
         X = self._X0
         for k in self._shape_names:
             X = X + (params[k] - self.problem.shape_nominal[k]) * self._V[k]
@@ -349,7 +356,7 @@ class Model:
         ``names``). Stores both on ``inc`` (``state``, ``state_sens``)."""
         if not self.has_history:
             return state_n, state_dot
-        w = jnp.asarray(inc.w)
+        w = to_device(inc.w)
         state = self._update(w, params, t, state_n)
         # the unknowns in the state are those of the increment: share inc.w instead of
         # keeping a second copy (half the memory per increment with friction)
@@ -357,7 +364,7 @@ class Model:
         sdot = None
         if state_dot is not None and len(names):
             t0 = time.perf_counter()
-            wd = jnp.asarray(np.stack([inc.sens[n] for n in names]))
+            wd = to_device(np.stack([inc.sens[n] for n in names]))
             sdot = self._update_jvp(w, params, t, state_n, wd, unit_tangents(params, list(names)),
                                     state_dot)
             jax.block_until_ready(sdot)
@@ -441,7 +448,7 @@ class Model:
         for i, s in enumerate(self.surfaces):
             if s.n_mult:
                 eps = float(np.ravel(s.contact.method.row_scale(s.contact.method.values(params)))[0])
-                g = np.asarray(self._fields(jnp.asarray(w), params, 0.0, i)["gap"])
+                g = np.asarray(self._fields(to_device(w), params, 0.0, i)["gap"])
                 lam = np.zeros((s.nodes.size, s.n_mult))
                 lam[:, 0] = -eps * g - 1e-9 * (1.0 + eps * float(np.max(np.abs(g))))
                 w[s.lam_offset: s.lam_offset + lam.size] = lam.ravel()

@@ -18,7 +18,9 @@ import functools
 from collections.abc import Callable, Iterable, Mapping
 from typing import Union
 
-from ._jax import jnp
+import numpy as np
+
+from ._jax import jnp, to_device
 from .errors import InputError, UnknownParameterError
 
 Spec = Union[float, int, str, Callable]
@@ -61,7 +63,7 @@ def check_names(names: Iterable[str], params: Mapping, what: str) -> None:
 
 def as_jax(params: Mapping[str, float]) -> dict:
     """Parameters as a dict of float64 JAX scalars (a pytree JAX can differentiate)."""
-    return {k: jnp.asarray(float(v), dtype=jnp.float64) for k, v in params.items()}
+    return {k: to_device(np.float64(float(v))) for k, v in params.items()}
 
 
 def unit_tangents(params: Mapping, names: list[str]) -> dict:
@@ -76,7 +78,8 @@ def unit_tangents(params: Mapping, names: list[str]) -> dict:
 
 @functools.lru_cache(maxsize=64)
 def _unit_tangents(keys: tuple, names: tuple) -> tuple:
-    return tuple((key, jnp.asarray([1.0 if key == n else 0.0 for n in names])) for key in keys)
+    return tuple((key, to_device(np.array([1.0 if key == n else 0.0 for n in names])))
+                 for key in keys)
 
 
 def parse_assignment(text: str) -> tuple[str, float]:

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._jax import jax, jnp
+from ._jax import jax, jnp, to_device
 from .errors import InputError
 from .newton import StepLog
 from .params import as_jax, unit_tangents
@@ -132,7 +132,7 @@ class Solution:
         if m.has_history:
             inc = self._inc(i)
             state = self.state_before(i)[0]
-            cases = m._cases(jnp.asarray(inc.w), self._jp, inc.t, state) if m.has_contact_history else None
+            cases = m._cases(to_device(inc.w), self._jp, inc.t, state) if m.has_contact_history else None
             d = self.history_response(lambda w, p, t, st: m.residual(w, p, t, st, cases)[m.prescribed],
                                       i)[1][name]
             r[m.prescribed] = np.asarray(d)
@@ -176,7 +176,7 @@ class Solution:
         out = {}
         for k in range(j + 1, n + 1):
             inc_k = self.increments[k]
-            state = out[k] = m._update(jnp.asarray(inc_k.w), self._jp, inc_k.t, state)
+            state = out[k] = m._update(to_device(inc_k.w), self._jp, inc_k.t, state)
         return out
 
     # ------------------------------------------------------- sensitivities
@@ -227,7 +227,7 @@ class Solution:
         if hasattr(s.contact.method, "status"):  # friction: open / stick / slip, slip increment
             from .contact.friction import STATUS_NAMES
 
-            st, gt = m._status(jnp.asarray(self._inc(i).w), self._jp, self._inc(i).t,
+            st, gt = m._status(to_device(self._inc(i).w), self._jp, self._inc(i).t,
                                self.state_before(i)[0], surface)
             out["status"] = np.array([STATUS_NAMES[k] for k in np.asarray(st)])
             out["slip"] = np.asarray(gt)
@@ -250,7 +250,7 @@ class Solution:
     def _evaluate(self, fn, i, with_sensitivities, key, with_state):
         """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])."""
         inc = self._inc(i)
-        w = jnp.asarray(inc.w)
+        w = to_device(inc.w)
         state, sdot = self.state_before(i) if with_state else (None, None)
         cache = self.model.cache
         if key is not None and (key, with_state) in cache:
@@ -268,7 +268,8 @@ class Solution:
         if not with_sensitivities or not self.names:
             return val, {}
         e = unit_tangents(self._jp, self.names)
-        wd = jnp.asarray(np.stack([inc.sens[n] for n in self.names]))
+        wd = to_device(np.stack([inc.sens[n] for n in self.names]))
         d = jvp_fn(w, self._jp, t, extra, wd, e, (sdot,) if with_state else ())
-        return val, {n: jax.tree_util.tree_map(lambda v, k=k: np.asarray(v[k]), d)
+        d = jax.tree_util.tree_map(np.asarray, d)  # index in NumPy: no eager JAX op per name
+        return val, {n: jax.tree_util.tree_map(lambda v, k=k: v[k], d)
                      for k, n in enumerate(self.names)}

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ._jax import jnp
+from ._jax import jnp, to_device
 from .errors import ConvergenceError, InputError, SingularTangentError
 from .linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
 from .model import Model
@@ -200,7 +200,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         sol.log.append(steplog)
         w_trial = w.copy()
         if model.prescribed.size:
-            w_trial[model.prescribed] = np.asarray(model.prescribed_values(params, t_new))
+            w_trial[model.prescribed] = np.asarray(model.prescribed_at(params, t_new))
         ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t_new))[model.free]))
         first = not sol.increments and t == 0.0
         started = first and initial is not None
@@ -255,7 +255,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
             continue
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
         if switches is not None:
-            inc.switches = switches(jnp.asarray(w_trial), params, t_new, state_n)
+            inc.switches = switches(to_device(w_trial), params, t_new, state_n)
         t_k = time.perf_counter()
         K = model.pattern.assemble(blocks) if keep_factors or ddm is not None else None
         t_k = time.perf_counter() - t_k  # booked with the DDM's factorisation, as before
@@ -276,7 +276,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
             w_dot = None
             if fac is not None:
                 t1 = time.perf_counter()
-                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot,
+                w_dot, timing = ddm.solve(fac, to_device(w_trial), params, t_new, state_n, state_dot,
                                           reuse_stiffness=steps >= 3)
                 if reused and fac.backward_error > REFINE_TOL:
                     w_dot, reused = None, False
@@ -287,7 +287,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
                     raise fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
                                f"sensitivities are undefined: {e}") from None
                 t1 = time.perf_counter()
-                w_dot, timing = ddm.solve(fac, jnp.asarray(w_trial), params, t_new, state_n, state_dot,
+                w_dot, timing = ddm.solve(fac, to_device(w_trial), params, t_new, state_n, state_dot,
                                           reuse_stiffness=steps >= 3)
             timing["factorization"] = t1 - t0
             timing["reused_factorization"] = reused
@@ -325,7 +325,7 @@ def _residual(model, w, params, t, state_n) -> np.ndarray:
     kernel less to compile on a first run (0.28 s at 5k DOFs)."""
     if model.linear_elements:
         return model.local_tangents(w, params, t, state_n)[0]
-    return np.asarray(model._residual(jnp.asarray(w), params, t, state_n))
+    return np.asarray(model._residual(to_device(w), params, t, state_n))
 
 
 class _Guide:
@@ -409,7 +409,7 @@ def _diagnose(model: Model, w, params, t, reason: str, n_inc: int) -> str:
                       "(Fixed) or contact.")
     parts = []
     for i, s in enumerate(model.surfaces):
-        f = model.contact_fields(jnp.asarray(w), params, t, i)
+        f = model.contact_fields(to_device(w), params, t, i)
         g = np.asarray(f["gap"])
         k = int(np.argmin(g))
         parts.append(f"surface {s.contact.edges!r}: smallest gap {g[k]:.4g} at node {int(s.nodes[k])}")

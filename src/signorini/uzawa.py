@@ -117,7 +117,7 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
     for n_inc in range(1, steps + 1):
         t = n_inc / steps
         if model.prescribed.size:
-            w[model.prescribed] = np.asarray(model.prescribed_values(params, t))
+            w[model.prescribed] = np.asarray(model.prescribed_at(params, t))
         ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t))[model.free]))
         newton_its, hist = 0, {n: [] for n in names}
         for k in range(1, max_outer + 1):

@@ -54,8 +54,14 @@ def check_edges(edges: np.ndarray, name: str) -> None:
 def nodal_normals(X, edges: np.ndarray, nodes: np.ndarray):
     """Reference outward unit normals (n_contact, 2) of the body at the contact
     nodes: normalised sum of the adjacent edge normals (dy, -dx)."""
+    pos = np.searchsorted(nodes, edges)
+    if isinstance(X, np.ndarray):  # a fixed mesh: NumPy (no eager JAX op to compile)
+        d = X[edges[:, 1]] - X[edges[:, 0]]
+        N = np.zeros((len(nodes), 2))
+        np.add.at(N, pos[:, 0], np.column_stack([d[:, 1], -d[:, 0]]))
+        np.add.at(N, pos[:, 1], np.column_stack([d[:, 1], -d[:, 0]]))
+        return N / np.linalg.norm(N, axis=1, keepdims=True)
     d = X[edges[:, 1]] - X[edges[:, 0]]
     n = jnp.stack([d[:, 1], -d[:, 0]], axis=1)
-    pos = np.searchsorted(nodes, edges)
     N = jnp.zeros((len(nodes), 2)).at[pos[:, 0]].add(n).at[pos[:, 1]].add(n)
     return N / jnp.linalg.norm(N, axis=1, keepdims=True)

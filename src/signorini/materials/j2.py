@@ -14,12 +14,14 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numpy as np
+
 from .._jax import jax, jnp
 from ..errors import InputError
 from ..params import Spec, resolve
 
 _SQ23 = math.sqrt(2.0 / 3.0)
-_I = jnp.eye(3)
+_I = np.eye(3)  # NumPy: a JAX op at import compiles (20 ms each)
 
 #: Newton steps on the cubic det(s/mu + Ibar I) = 1: monotone from an upper
 #: bound within ~||s/mu||^2 of the root, quadratic; 8 steps reach round-off for

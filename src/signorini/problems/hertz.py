@@ -202,6 +202,25 @@ def coarse_levels(refine: int, n_fine: int = 24) -> list[tuple[int, int]]:
     return out[::-1]
 
 
+#: the CLIs start from coarser meshes only from this many DOFs on: below it,
+#: compiling the coarse meshes' kernels (0.9 s on a first run, 0.4 s loaded from
+#: the compilation cache, default 3.6k-DOF mesh) costs more than the Newton
+#: iterations they save (8 -> 1 of 2-3 ms each there; docs/theory.md §10.3)
+MIN_GUIDED_DOFS = 50_000
+
+
+def coarse_start_skipped(pb, coarse_start: bool) -> str | None:
+    """Why a CLI run does not start from coarser meshes (None: it does)."""
+    from ..solve import model_for
+
+    if not coarse_start:
+        return "off"
+    n = model_for(pb).n_dof
+    if n < MIN_GUIDED_DOFS:
+        return f"not used below {MIN_GUIDED_DOFS} DOFs ({n} here): compiling it costs more than it saves"
+    return None
+
+
 def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options, solver):
     """(guide, levels): the meshes ``build(refine, n_fine)`` of
     :func:`coarse_levels`, solved coarse to fine along the whole load path, the
@@ -262,7 +281,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
     guide, levels = None, []
-    if coarse_start:
+    skipped = coarse_start_skipped(pb, coarse_start)
+    if skipped is None:
         guide, levels = coarse_start_for(
             pb, lambda r, n: hertz_problem(params, refine=r, n_fine=n, method=method,
                                            finite_strain=finite_strain, size=size, zone=zone),
@@ -325,7 +345,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
               "error_in_cells": (a_fe - an["a"]) / fine_cell_size(pb)},
         "newton_iterations": sol.newton_iterations,
         "newton_residuals": [inc.newton.residuals for inc in sol.increments],
-        "coarse_start": levels if levels else ("off" if not coarse_start else "no coarser mesh"),
+        "coarse_start": levels if levels else (skipped or "no coarser mesh"),
         "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,

@@ -185,7 +185,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
     guide, coarse = None, []
-    if coarse_start:
+    skipped = hertz.coarse_start_skipped(pb, coarse_start)
+    if skipped is None:
         guide, coarse = hertz.coarse_start_for(
             pb, lambda r, n: hertz_friction_problem(params, refine=r, n_fine=n, size=size, zone=zone,
                                                     finite_strain=finite_strain),
@@ -247,7 +248,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     summary.update({
         "params": v,
         "steps": steps,
-        "coarse_start": coarse if coarse else ("off" if not coarse_start else "no coarser mesh"),
+        "coarse_start": coarse if coarse else (skipped or "no coarser mesh"),
         "finite_strain": finite_strain,
         "solver": solver.name, "symmetric_factorisation": sol.symmetric,
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},

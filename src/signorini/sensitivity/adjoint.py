@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from .._jax import jax, jnp
+from .._jax import jax, jnp, to_device
 from ..errors import SingularTangentError, SolverError
 from ..linsolve import TangentSolver, get_solver, openblas_single_thread
 from ..model import NODES
@@ -126,7 +126,7 @@ class Adjoint:
                 break  # without history nothing flows to earlier increments
             inc = sol.increments[n]
             t = inc.t
-            w = jnp.asarray(inc.w)
+            w = to_device(inc.w)
             s_prev = states.before(n) if m.has_history else None
             t0 = time.perf_counter()
             w_bar = jnp.zeros(m.n_dof)
@@ -166,14 +166,14 @@ class Adjoint:
                 c[m.free] = -mu
                 # the branch flags of the converged tangent (evaluated as in local_tangents)
                 cases = self._cases(w, params, t, s_prev) if m.has_contact_history else None
-                rw, rp, rs = self._res_vjp(w, pe, t, s_prev, cases, jnp.asarray(c))
+                rw, rp, rs = self._res_vjp(w, pe, t, s_prev, cases, to_device(c))
                 w_p_bar = w_bar[m.prescribed] + np.asarray(rw)[m.prescribed]
                 grad, s_prev_bar = _add(grad, rp), _add(s_prev_bar, rs)
             else:
                 t3 = t1
                 w_p_bar = w_bar[m.prescribed]
             if m.prescribed.size and np.any(w_p_bar != 0.0):
-                grad = _add(grad, self._wp_vjp(pe, t, jnp.asarray(w_p_bar)))
+                grad = _add(grad, self._wp_vjp(pe, t, to_device(w_p_bar)))
             s_bar = s_prev_bar if m.has_history else None
             timing["vjp"] += time.perf_counter() - t3
             timing["increments"] += 1

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jax import jax, jnp
+from .._jax import jax, jnp, to_device
 from ..params import unit_tangents
 
 
@@ -101,7 +101,7 @@ class DDM:
         """(n_names, n_dof) pseudo-loads; element kernels only for the names that
         need them."""
         m = self.model
-        wd = jnp.asarray(w_dot)
+        wd = to_device(w_dot)
         if self._element_names is None:
             return np.asarray(self._pseudo["all"](w, params, t, state_n, cases, wd, e, state_dot_n))
         moves = np.any(w_dot[:, m.prescribed] != 0.0, axis=1) if m.prescribed.size else \
@@ -118,7 +118,7 @@ class DDM:
                 sub = jax.tree_util.tree_map(lambda a: a[k], (wd, e, state_dot_n))
                 P[k] += np.asarray(self._pseudo["elements"](w, params, t, state_n, cases, *sub))
             else:  # no prescribed motion: the internal forces see the parameters only
-                e_el = {n: e[n][k] for n in self._element_names if n in e}
+                e_el = {n: to_device(np.asarray(e[n])[k]) for n in self._element_names if n in e}
                 P[k] += np.asarray(self._material_pseudo(w, params, t, e_el))
         return P
 
