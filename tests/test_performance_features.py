@@ -104,6 +104,31 @@ def test_one_analysis_for_a_whole_load_path():
     assert s.factorizations == n_fac and s.analyses == 1
 
 
+def test_a_named_solver_keeps_its_analysis_for_every_solve_of_the_model():
+    """solver="auto" (or a name) is the model's own instance: a second solve of the
+    same model at other parameter values analyses nothing; a solve while that
+    instance is in use gets a fresh one. The results are those of a fresh solver."""
+    import contextlib
+
+    from signorini.solve import kept_solver
+
+    pb = hertz.hertz_problem(n_fine=8)
+    a = sg.solve(pb, sensitivities=["E"])
+    inst = a.linear_solver
+    if not isinstance(inst, Pardiso):
+        pytest.skip("PARDISO is not installed: no analysis to count")
+    before = inst.analyses
+    b = sg.solve(pb.with_params(E=1.1 * pb.params["E"]), sensitivities=["E"])
+    assert b.linear_solver is inst and inst.analyses == before
+    fresh = sg.solve(pb.with_params(E=1.1 * pb.params["E"]), sensitivities=["E"], solver=Pardiso())
+    assert _rel(b.increments[-1].w, fresh.increments[-1].w) < 1e-12
+    assert _rel(b.increments[-1].sens["E"], fresh.increments[-1].sens["E"]) < 1e-10
+    with contextlib.ExitStack() as stack:  # in use: the next solve gets its own instance
+        assert kept_solver(model_for(pb), "auto", stack) is inst
+        assert sg.solve(pb).linear_solver is not inst
+    assert sg.solve(pb).linear_solver is inst
+
+
 def test_symmetric_factorisation_only_without_history():
     a = sg.solve(hertz.hertz_problem(n_fine=8, size=8))
     b = sg.solve(hertz_friction_problem(refine=0), steps=3)
