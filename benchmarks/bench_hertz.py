@@ -11,7 +11,8 @@ each (so that the peak memory is that run's):
   over the iterations of the same solve started from the undeformed state)
   divided by one bare numeric factorisation of the converged tangent, and the
   kernel + assembly share of an iteration;
-* the DDM per parameter (pseudo-load + back-substitution) divided by the solve;
+* the DDM per parameter (pseudo-load + back-substitution, the fastest of three
+  solves with sensitivities) divided by the solve (the fastest of three);
 * wall time of the solve (coarse levels included, compilation excluded),
   seconds per DOF, peak resident memory.
 
@@ -35,6 +36,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 from _report import report
 
 #: (refine, n_fine) of each size (block 20 a0, fine zone 1.5 a0)
@@ -76,12 +78,20 @@ def one(size: str, solver: str) -> dict:
         return sg.solve(pb, options=opts, solver=lin, sensitivities=sens, initial=initial), levels
 
     run(NAMES)  # compile every level (not timed)
-    t0 = time.perf_counter()
-    sol, levels = run(())
-    t_solve = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    sol_s, _ = run(NAMES)
-    t_solve_s = time.perf_counter() - t0
+    # the fastest of three solves, with and without sensitivities (the DDM's own
+    # times spread by up to 2.5x between identical solves on this machine)
+    t_solve, t_solve_s, best_ddm = np.inf, np.inf, None
+    for _ in range(3):
+        t0 = time.perf_counter()
+        sol, levels = run(())
+        t_solve = min(t_solve, time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        s, _ = run(NAMES)
+        t_solve_s = min(t_solve_s, time.perf_counter() - t0)
+        tm = s.increments[-1].timing
+        if best_ddm is None or tm["pseudo_load"] + tm["back_substitution"] < best_ddm[0]:
+            best_ddm = (tm["pseudo_load"] + tm["back_substitution"], s)
+    sol_s = best_ddm[1]
     # the same solve from the undeformed state: its iteration count, and the cost of
     # one Newton iteration averaged over many (the last residual evaluation excluded)
     # (the fastest of three runs, against the fastest of five bare factorisations: both
