@@ -286,3 +286,45 @@ def test_assembled_tangent_equals_jacfwd_of_residual(finite_strain, state):
     # |grad g| = 1 (finite kinematics) or |N . n'(X)| >= cos 45 deg (linear kinematics: the
     # top face ends at x = 6a ~ 0.7 R), so > 0.5 A
     assert np.all(np.linalg.norm(Kc[closed, 2, :2], axis=1) > 0.5 * A[closed])
+
+
+@pytest.mark.parametrize("kinematics", ["plane", "axisymmetric"])
+@pytest.mark.parametrize("material", ["j2", "neohooke"])
+def test_fbar_tangent_equals_forward_jacobian_of_the_element(kinematics, material):
+    """The F-bar tangent is assembled from Gauss-point derivatives (dHbar/dv, dP/dHbar
+    and the curvature of the F-bar map): it equals the forward-mode Jacobian of the
+    element residual, on elastic and plastic J2 states and for a neo-Hookean solid,
+    and the internal forces and history equal those of the residual kernel."""
+    from signorini.kinematics import AXISYMMETRIC, PLANE_STRAIN
+    from signorini.materials import J2Plasticity
+
+    kin = PLANE_STRAIN if kinematics == "plane" else AXISYMMETRIC
+    rng = np.random.default_rng(3)
+    Xe = jnp.asarray(np.array([[1.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0]]) + 0.1 * rng.random((4, 2)))
+    if material == "j2":
+        mat = J2Plasticity()
+        mp = {"E": 200.0, "nu": 0.3, "sigma_y": 0.5, "H": 2.0}
+    else:
+        mat = sg.NeoHooke()
+        mp = {"E": 100.0, "nu": 0.3}
+    mp = {k: jnp.float64(v) for k, v in mp.items()}
+    hn = None
+    if mat.n_state:  # a plastic history from a first step
+        hn = jnp.broadcast_to(mat.initial_state(), (4, mat.n_state))
+        _, hn = element.element_update(jnp.asarray(0.05 * rng.standard_normal((4, 2))), Xe, mat, mp,
+                                       hn, kin, element.FBAR)
+        assert float(jnp.max(hn[:, 9])) > 0.0
+    plastic = 0
+    for scale in (1e-3, 0.05, 0.15, 0.3):
+        ue = jnp.asarray(scale * rng.standard_normal((4, 2)))
+        r, K, h = element.element_residual_tangent(ue, Xe, mat, mp, hn, kin, element.FBAR)
+        res = lambda u: element.element_update(u.reshape(4, 2), Xe, mat, mp, hn, kin, element.FBAR)
+        K_ref = np.asarray(jax.jacfwd(lambda u: res(u)[0].reshape(8))(ue.reshape(8)))
+        r_ref, h_ref = res(ue.reshape(8))
+        assert np.abs(np.asarray(K) - K_ref).max() <= 1e-13 * np.abs(K_ref).max()
+        assert np.abs(np.asarray(r) - np.asarray(r_ref).ravel()).max() <= 1e-13 * np.abs(r_ref).max()
+        if hn is not None:
+            assert np.abs(np.asarray(h) - np.asarray(h_ref)).max() <= 1e-14
+            plastic += int(np.any(np.asarray(h)[:, 9] > np.asarray(hn)[:, 9]))
+    if hn is not None:
+        assert plastic >= 1  # the larger steps yield

@@ -153,7 +153,9 @@ def element_residual_tangent(ue, Xe, material, mp, hn=None, kinematics=PLANE_STR
     Standard formulation: H_g = B_g u_e is linear, so autodiff is applied at the
     material point only: P and C = dP/dH per Gauss point (at fixed h_n), then
     r = sum_g w_g B^T P, K = sum_g w_g B^T C B (differentiating the whole element
-    in forward mode cost 3-4x more). F-bar: forward-mode Jacobian of the residual.
+    in forward mode cost 3-4x more). F-bar: the same at the Gauss point, on the
+    2 x n_active components of (H_g, H_0) that Hbar_g depends on
+    (:func:`_fbar_residual_tangent`).
     """
     hn = _history(material, hn)
     if formulation.linear:
@@ -170,11 +172,56 @@ def element_residual_tangent(ue, Xe, material, mp, hn=None, kinematics=PLANE_STR
         r, K = _contract(w, dNdX, kinematics.hoop_functions(Xe, _N), P, C)
         return r, K, h
 
-    def res(u):
-        r, h = element_update(u.reshape(4, 2), Xe, material, mp, hn, kinematics, formulation)
-        return r.reshape(8), (r.reshape(8), h)
+    return _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation)
 
-    K, (r, h) = jax.jacfwd(res, has_aux=True)(ue.reshape(8))
+
+def _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation):
+    """Internal forces, tangent and history of a formulation whose Hbar_g is a
+    nonlinear function of H_g = B_g u_e and H_0 = B_0 u_e (F-bar).
+
+    With v = (H_g, H_0) on the active components and Hbar_g(v) on its own
+    non-zero components (in-plane and 33), the chain rule is taken apart:
+    A_g = dHbar_g/dv, C_g = dP/dHbar (forward mode at the material point, one
+    direction per component of Hbar), S_g = A_g^T P, and
+    dS_g/dv = A_g^T C_g A_g + d^2(P . Hbar_g(v))/dv^2 at fixed P (the curvature
+    of the F-bar map). Then r = sum_g w_g [B_g; B_0]^T S_g and
+    K = sum_g w_g [B_g; B_0]^T (dS_g/dv) [B_g; B_0]. The forward-mode Jacobian
+    of the whole element (8 directions through geometry, F-bar map, return map
+    and its VJP) cost about twice as much (docs/theory.md §10.2).
+    """
+    rows, cols = (np.array(c) for c in zip(*kinematics.active))
+    na = rows.size
+    # Hbar = c (I + H) - I is zero outside the in-plane block and the 33 entry
+    brows, bcols = np.array([0, 0, 1, 1, 2]), np.array([0, 1, 0, 1, 2])
+    dNdX, detJ = _gradients(_DN, Xe)
+    w = kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+    dNdX0, _ = _gradients(_DN0, Xe)
+    # B_g (g, na, 8) and B_0 (na, 8): the displacement gradients are linear in u_e
+    grad_g = lambda u: kinematics.displacement_gradients(u.reshape(4, 2), Xe, _N, dNdX)[:, rows, cols]
+    grad_0 = lambda u: kinematics.displacement_gradients(u.reshape(4, 2), Xe, _N0, dNdX0)[0, rows, cols]
+    u8 = ue.reshape(8)
+    B = jnp.concatenate([jax.jacfwd(grad_g)(u8),
+                         jnp.broadcast_to(jax.jacfwd(grad_0)(u8), (N_GAUSS, na, 8))], axis=1)
+    v = jnp.einsum("gkj,j->gk", B, u8)  # (g, 2 na): (H_g, H_0) on the active components
+
+    def hbar(x):
+        H = jnp.zeros((3, 3)).at[rows, cols].set(x[:na])
+        H0 = jnp.zeros((3, 3)).at[rows, cols].set(x[na:])
+        return formulation.modify(H[None], H0)[0][brows, bcols]
+
+    def stress(b, h_):
+        P, h = material.update(jnp.zeros((3, 3)).at[brows, bcols].set(b), h_, mp)
+        return P[brows, bcols], (P[brows, bcols], h)
+
+    def point(x, h_):
+        A = jax.jacfwd(hbar)(x)  # (5, 2 na)
+        C, (P, h) = jax.jacfwd(stress, has_aux=True)(hbar(x), h_)  # (5, 5), (5,)
+        G = jax.hessian(lambda y: jnp.dot(P, hbar(y)))(x)  # P held fixed
+        return A.T @ P, A.T @ C @ A + G, h
+
+    S, D, h = jax.vmap(point)(v, hn)
+    r = jnp.einsum("g,gkj,gk->j", w, B, S)
+    K = jnp.einsum("g,gki,gkl,glj->ij", w, B, D, B)
     return r, K, h
 
 
