@@ -104,6 +104,34 @@ class FBar:
         cm1 = jnp.expm1(d)[:, None, None]
         return cm1 * (jnp.eye(3) + H) + H
 
+    @staticmethod
+    def linearization(x, rows, cols, brows, bcols):
+        """The F-bar map at one Gauss point and its first two derivatives, by hand.
+
+        x = (H, H0) on the active components (rows, cols); Hbar = c F - I with
+        ln c = (ln J0 - ln J) / 3. Returns Hbar on (brows, bcols), c,
+        ell = d ln c / dx = (-F^-T, F0^-T) / 3, the Hessian L2 of ln c
+        (d^2 ln J / dH_a dH_b = -F^-1_{j_a i_b} F^-1_{j_b i_a}) and F on
+        (brows, bcols). Then dHbar/dx = c ([E, 0] + F ell^T) and, at fixed P,
+        d^2(P : Hbar)/dx^2 = c [(P : F)(ell ell^T + L2) + ell p^T + p ell^T]
+        with p = d(P : F)/dx (docs/theory.md §10.2).
+        """
+        na = rows.size
+        H = jnp.zeros((3, 3)).at[rows, cols].set(x[:na])
+        H0 = jnp.zeros((3, 3)).at[rows, cols].set(x[na:])
+        d = (jnp.log1p(det_minus_one(H0)) - jnp.log1p(det_minus_one(H))) / 3.0
+        cm1 = jnp.expm1(d)
+        F, F0 = jnp.eye(3) + H, jnp.eye(3) + H0
+        Fi, F0i = _inverse_planar(F), _inverse_planar(F0)
+        gH, g0 = Fi[cols, rows], F0i[cols, rows]  # F^-T on the active components
+        ell = jnp.concatenate([-gH, g0]) / 3.0
+        MH = Fi[cols[:, None], rows[None, :]] * Fi[cols[None, :], rows[:, None]]
+        M0 = F0i[cols[:, None], rows[None, :]] * F0i[cols[None, :], rows[:, None]]
+        z = jnp.zeros((na, na))
+        L2 = jnp.block([[MH, z], [z, -M0]]) / 3.0
+        Hb = (cm1 * F + H)[brows, bcols]
+        return Hb, 1.0 + cm1, ell, L2, F[brows, bcols]
+
 
 STANDARD = Standard()
 FBAR = FBar()
@@ -119,6 +147,14 @@ def gauss_gradients(ue, Xe, kinematics=PLANE_STRAIN, formulation=STANDARD):
         H0 = kinematics.displacement_gradients(ue, Xe, _N0, dNdX0)[0]
         H = formulation.modify(H, H0)
     return H, kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+
+
+def _inverse_planar(F):
+    """Inverse of a 3x3 F that is zero outside the in-plane block and the 33 entry."""
+    det2 = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+    return jnp.array([[F[1, 1] / det2, -F[0, 1] / det2, 0.0],
+                      [-F[1, 0] / det2, F[0, 0] / det2, 0.0],
+                      [0.0, 0.0, 1.0 / F[2, 2]]])
 
 
 def _history(material, hn):
@@ -218,6 +254,18 @@ def _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation):
         C, (P, h) = jax.jacfwd(stress, has_aux=True)(hbar(x), h_)  # (5, 5), (5,)
         G = jax.hessian(lambda y: jnp.dot(P, hbar(y)))(x)  # P held fixed
         return A.T @ P, A.T @ C @ A + G, h
+
+    if isinstance(formulation, FBar):
+        E = np.array([[float(br == r_ and bc == c_) for r_, c_ in zip(rows, cols)]
+                      for br, bc in zip(brows, bcols)])  # (5, na): H's entries among Hbar's
+
+        def point(x, h_):  # noqa: F811 - the F-bar map differentiated by hand
+            Hb, c, ell, L2, f5 = formulation.linearization(x, rows, cols, brows, bcols)
+            C, (P, h) = jax.jacfwd(stress, has_aux=True)(Hb, h_)
+            A = c * (jnp.concatenate([E, jnp.zeros_like(E)], axis=1) + jnp.outer(f5, ell))
+            p = jnp.concatenate([E.T @ P, jnp.zeros(na)])
+            G = c * (jnp.dot(f5, P) * (jnp.outer(ell, ell) + L2) + jnp.outer(ell, p) + jnp.outer(p, ell))
+            return A.T @ P, A.T @ C @ A + G, h
 
     S, D, h = jax.vmap(point)(v, hn)
     r = jnp.einsum("g,gkj,gk->j", w, B, S)
