@@ -221,9 +221,10 @@ def _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation):
     direction per component of Hbar), S_g = A_g^T P, and
     dS_g/dv = A_g^T C_g A_g + d^2(P . Hbar_g(v))/dv^2 at fixed P (the curvature
     of the F-bar map). Then r = sum_g w_g [B_g; B_0]^T S_g and
-    K = sum_g w_g [B_g; B_0]^T (dS_g/dv) [B_g; B_0]. The forward-mode Jacobian
-    of the whole element (8 directions through geometry, F-bar map, return map
-    and its VJP) cost about twice as much (docs/theory.md §10.2).
+    K = sum_g w_g [B_g; B_0]^T (dS_g/dv) [B_g; B_0]. FBar's map is differentiated
+    by hand (:meth:`FBar.linearization`), another formulation's by autodiff. The
+    forward-mode Jacobian of the whole element (8 directions through geometry,
+    F-bar map, return map and its VJP) cost 3x as much (docs/theory.md §10.2).
     """
     rows, cols = (np.array(c) for c in zip(*kinematics.active))
     na = rows.size
@@ -249,24 +250,24 @@ def _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation):
         P, h = material.update(jnp.zeros((3, 3)).at[brows, bcols].set(b), h_, mp)
         return P[brows, bcols], (P[brows, bcols], h)
 
-    def point(x, h_):
+    def point_autodiff(x, h_):
         A = jax.jacfwd(hbar)(x)  # (5, 2 na)
         C, (P, h) = jax.jacfwd(stress, has_aux=True)(hbar(x), h_)  # (5, 5), (5,)
         G = jax.hessian(lambda y: jnp.dot(P, hbar(y)))(x)  # P held fixed
         return A.T @ P, A.T @ C @ A + G, h
 
-    if isinstance(formulation, FBar):
-        E = np.array([[float(br == r_ and bc == c_) for r_, c_ in zip(rows, cols)]
-                      for br, bc in zip(brows, bcols)])  # (5, na): H's entries among Hbar's
+    E = np.array([[float(br == r_ and bc == c_) for r_, c_ in zip(rows, cols)]
+                  for br, bc in zip(brows, bcols)])  # (5, na): H's entries among Hbar's
 
-        def point(x, h_):  # noqa: F811 - the F-bar map differentiated by hand
-            Hb, c, ell, L2, f5 = formulation.linearization(x, rows, cols, brows, bcols)
-            C, (P, h) = jax.jacfwd(stress, has_aux=True)(Hb, h_)
-            A = c * (jnp.concatenate([E, jnp.zeros_like(E)], axis=1) + jnp.outer(f5, ell))
-            p = jnp.concatenate([E.T @ P, jnp.zeros(na)])
-            G = c * (jnp.dot(f5, P) * (jnp.outer(ell, ell) + L2) + jnp.outer(ell, p) + jnp.outer(p, ell))
-            return A.T @ P, A.T @ C @ A + G, h
+    def point_fbar(x, h_):
+        Hb, c, ell, L2, f5 = formulation.linearization(x, rows, cols, brows, bcols)
+        C, (P, h) = jax.jacfwd(stress, has_aux=True)(Hb, h_)
+        A = c * (jnp.concatenate([E, jnp.zeros_like(E)], axis=1) + jnp.outer(f5, ell))
+        p = jnp.concatenate([E.T @ P, jnp.zeros(na)])
+        G = c * (jnp.dot(f5, P) * (jnp.outer(ell, ell) + L2) + jnp.outer(ell, p) + jnp.outer(p, ell))
+        return A.T @ P, A.T @ C @ A + G, h
 
+    point = point_fbar if isinstance(formulation, FBar) else point_autodiff
     S, D, h = jax.vmap(point)(v, hn)
     r = jnp.einsum("g,gkj,gk->j", w, B, S)
     K = jnp.einsum("g,gki,gkl,glj->ij", w, B, D, B)
