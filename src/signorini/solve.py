@@ -226,7 +226,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         first = not sol.increments and t == 0.0
         started = first and initial is not None
         # a coarser solve of the same path: w_n + P(w^c_{n+1} - w^c_n)
-        guided = guides is not None and not started and guides.covers(t, t_new, first)
+        guided = guides is not None and not started and guides.covers(t_new)
         # else linear extrapolation of the last two converged states (quadratic through
         # three was measured worse: 5.5 instead of 3.0 iterations per increment, frictional
         # Hertz 60k DOFs, 10 increments; zones growing like sqrt(t) are not smooth in t)
@@ -365,7 +365,7 @@ class _Guide:
         self.times = np.array(sorted(self.w))
         self.cache: dict = {}
 
-    def covers(self, t, t_new, first) -> bool:
+    def covers(self, t_new) -> bool:
         return bool(self.times.size) and round(t_new, 12) <= self.times[-1]
 
     def _at(self, t):
@@ -382,12 +382,9 @@ class _Guide:
 
     def start(self, t, t_new, w, first):
         end = self._at(t_new)
-        if first:
-            self.cache = {round(t_new, 12): end}
-            return end
-        begin = self._at(t)
+        begin = None if first else self._at(t)
         self.cache = {round(t_new, 12): end}  # the next increment begins here
-        return w + (end - begin)
+        return end if first else w + (end - begin)
 
 
 def _own_factor(lin: TangentSolver, K):

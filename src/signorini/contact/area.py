@@ -55,13 +55,13 @@ def nodal_normals(X, edges: np.ndarray, nodes: np.ndarray):
     """Reference outward unit normals (n_contact, 2) of the body at the contact
     nodes: normalised sum of the adjacent edge normals (dy, -dx)."""
     pos = np.searchsorted(nodes, edges)
-    if isinstance(X, np.ndarray):  # a fixed mesh: NumPy (no eager JAX op to compile)
-        d = X[edges[:, 1]] - X[edges[:, 0]]
-        N = np.zeros((len(nodes), 2))
-        np.add.at(N, pos[:, 0], np.column_stack([d[:, 1], -d[:, 0]]))
-        np.add.at(N, pos[:, 1], np.column_stack([d[:, 1], -d[:, 0]]))
-        return N / np.linalg.norm(N, axis=1, keepdims=True)
+    xp = np if isinstance(X, np.ndarray) else jnp  # a fixed mesh: NumPy, no eager JAX op
     d = X[edges[:, 1]] - X[edges[:, 0]]
-    n = jnp.stack([d[:, 1], -d[:, 0]], axis=1)
-    N = jnp.zeros((len(nodes), 2)).at[pos[:, 0]].add(n).at[pos[:, 1]].add(n)
-    return N / jnp.linalg.norm(N, axis=1, keepdims=True)
+    n = xp.stack([d[:, 1], -d[:, 0]], axis=1)
+    if xp is np:
+        N = np.zeros((len(nodes), 2))
+        np.add.at(N, pos[:, 0], n)
+        np.add.at(N, pos[:, 1], n)
+    else:
+        N = jnp.zeros((len(nodes), 2)).at[pos[:, 0]].add(n).at[pos[:, 1]].add(n)
+    return N / xp.linalg.norm(N, axis=1, keepdims=True)
