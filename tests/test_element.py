@@ -343,3 +343,36 @@ def test_fbar_tangent_equals_forward_jacobian_of_the_element(kinematics, materia
             plastic += int(np.any(np.asarray(h)[:, 9] > np.asarray(hn)[:, 9]))
     if hn is not None:
         assert plastic >= 1  # the larger steps yield
+
+
+@pytest.mark.parametrize("kinematics", ["plane", "axisymmetric"])
+@pytest.mark.parametrize("material", ["linear", "neohooke", "j2"])
+def test_standard_internal_forces_equal_the_vjp_of_the_gradients(kinematics, material):
+    """The standard element's internal forces, summed as w B^T P by hand (hoop row
+    included), equal their definition r = (dH/du_e)^T (w P) taken by JAX's VJP of
+    the Gauss-point gradients, and the r of the residual-and-tangent kernel."""
+    from signorini.kinematics import AXISYMMETRIC, PLANE_STRAIN
+    from signorini.materials import J2Plasticity
+
+    kin = PLANE_STRAIN if kinematics == "plane" else AXISYMMETRIC
+    mat = {"linear": sg.LinearElastic(), "neohooke": sg.NeoHooke(), "j2": J2Plasticity()}[material]
+    mp = {"E": 200.0, "nu": 0.3, "sigma_y": 0.5, "H": 2.0} if material == "j2" else {"E": 100.0, "nu": 0.3}
+    mp = {k: jnp.float64(v) for k, v in mp.items()}
+    rng = np.random.default_rng(5)
+    Xe = jnp.asarray(QUAD + np.array([1.0, 0.0]))  # R > 0 for the axisymmetric case
+    hn = jnp.broadcast_to(mat.initial_state(), (4, mat.n_state)) if mat.n_state else None
+    for scale in (1e-3, 0.1):
+        ue = jnp.asarray(scale * rng.standard_normal((4, 2)))
+        r, h = element.element_update(ue, Xe, mat, mp, hn, kin, element.STANDARD)
+        w = element.gauss_gradients(ue, Xe, kin, element.STANDARD)[1]
+        H, vjp = jax.vjp(lambda u: element.gauss_gradients(u, Xe, kin, element.STANDARD)[0], ue)
+        P, h_ref = jax.vmap(mat.update, (0, 0 if hn is not None else None, None))(
+            H, hn if hn is not None else jnp.zeros(0), mp)
+        (r_ref,) = vjp(w[:, None, None] * P)
+        scale_r = float(jnp.abs(r_ref).max())
+        assert scale_r > 0.0
+        assert float(jnp.abs(r - r_ref).max()) <= 1e-13 * scale_r
+        r2 = element.element_residual_tangent(ue, Xe, mat, mp, hn, kin, element.STANDARD)[0]
+        assert float(jnp.abs(r2 - r_ref.ravel()).max()) <= 1e-13 * scale_r
+        if hn is not None:
+            assert float(jnp.abs(h - h_ref).max()) <= 1e-14

@@ -170,11 +170,28 @@ def element_update(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formu
         hn: (4, n_state) history at the end of the previous increment (None: no history).
     """
     hn = _history(material, hn)
+    if formulation.linear:  # r = sum_g w B^T P, H = B u_e (no VJP of the gradients)
+        dNdX, detJ = _gradients(_DN, Xe)
+        w = kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+        H = kinematics.displacement_gradients(ue, Xe, _N, dNdX)
+        P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
+        return _forces(w, dNdX, kinematics.hoop_functions(Xe, _N), P), h
     w = gauss_gradients(ue, Xe, kinematics, formulation)[1]
     H, vjp = jax.vjp(lambda u: gauss_gradients(u, Xe, kinematics, formulation)[0], ue)
     P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
     (r,) = vjp(w[:, None, None] * P)
     return r, h
+
+
+def _forces(w, dNdX, hoop, P):
+    """r (4, 2) = sum_g w B^T P for P (g, 3, 3): r_ai = sum_g w P_ij dN_a/dX_j
+    (+ w P_33 hoop_a for i = r, axisymmetric). A broadcast sum, not an einsum:
+    XLA on the CPU runs the vmapped einsum's tiny batched products 1.7x slower
+    (the residual of 27,816 cells: 12.3 against 7.2 ms)."""
+    r = jnp.sum((w[:, None, None, None] * P[:, None, :2, :2]) * dNdX[:, :, None, :], axis=(0, 3))
+    if hoop is not None:
+        r = r.at[:, 0].add(jnp.sum((w * P[:, 2, 2])[:, None] * hoop, axis=0))
+    return r
 
 
 def element_residual(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formulation=STANDARD):

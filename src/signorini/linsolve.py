@@ -87,12 +87,17 @@ class Factor:
                 rn[filled] = np.maximum.reduceat(np.abs(K.data), K.indptr[:-1][filled])
             self._norm[transpose] = rn
         rn = self._norm[transpose]
-        xmax = np.max(np.abs(x), axis=0)
-        den = np.abs(b)
-        den += np.multiply.outer(rn, xmax) if x.ndim == 2 else rn * xmax
+        if x.ndim == 2:  # column by column: NumPy's reductions and broadcasts over a
+            # short last axis are slow (3 columns at 225k DOFs: 7.2 -> 0.8 ms)
+            return max((self._backward_error(r[:, j], x[:, j], b[:, j], transpose)
+                        for j in range(x.shape[1])), default=0.0)
+        den = rn * float(np.max(np.abs(x), initial=0.0))
+        den += np.abs(b)
+        # den_i = 0 only where b_i = 0 and (row i of K is zero or x = 0): then r_i = 0,
+        # and r_i / tiny = 0
+        np.maximum(den, 1e-300, out=den)
         ratio = np.abs(r)
-        np.divide(ratio, den, out=ratio, where=den > 0)
-        ratio[den <= 0] = 0.0  # a zero row with a zero right-hand side
+        ratio /= den
         return float(np.max(ratio, initial=0.0))
 
     def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
@@ -122,14 +127,14 @@ class Factor:
         x = step(b)
         if not np.all(np.isfinite(x)):
             raise SingularTangentError("the linear solve returned non-finite values (singular tangent)")
-        r = b - K @ x
+        r = _residual(K, x, b)
         eta = self._backward_error(r, x, b, transpose)
         for _ in range(REFINE_STEPS):
             if eta <= REFINE_TOL:
                 break
             x_new = x + step(r)
             self.refinements += 1
-            r_new = b - K @ x_new
+            r_new = _residual(K, x_new, b)
             eta_new = self._backward_error(r_new, x_new, b, transpose)
             if eta_new < eta:
                 x, r = x_new, r_new
@@ -138,8 +143,9 @@ class Factor:
             if stalled:
                 break
         self.backward_error = eta
-        r2, b2 = r.reshape(r.shape[0], -1), b.reshape(b.shape[0], -1)  # column norms by einsum:
-        nr, nb = np.einsum("ij,ij->j", r2, r2), np.einsum("ij,ij->j", b2, b2)  # 1 ms, not 5 (225k)
+        r2, b2 = r.reshape(r.shape[0], -1), b.reshape(b.shape[0], -1)
+        nr = np.array([np.dot(r2[:, j], r2[:, j]) for j in range(r2.shape[1])])
+        nb = np.array([np.dot(b2[:, j], b2[:, j]) for j in range(b2.shape[1])])
         self.relative_residual = float(np.sqrt(np.max(nr / np.maximum(nb, 1e-300))))
         return x
 
@@ -152,6 +158,18 @@ class Factor:
         keep = not self._transposable and self._transpose_factor is not None
         return Factor(self._solve, K, transpose_factor=transposed if keep else None,
                       transposable=self._transposable)
+
+
+def _residual(K, x, b):
+    """b - K x, column by column for several right-hand sides (SciPy's one-vector
+    product is faster than its several-vector one: 6 against 8 ms for 3 columns
+    at 225k DOFs)."""
+    if x.ndim == 1:
+        return b - K @ x
+    r = np.empty_like(b, dtype=float)
+    for j in range(x.shape[1]):
+        r[:, j] = b[:, j] - K @ x[:, j]
+    return r
 
 
 class LinearSolver:

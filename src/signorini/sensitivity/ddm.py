@@ -118,7 +118,10 @@ class DDM:
                 sub = jax.tree_util.tree_map(lambda a: a[k], (wd, e, state_dot_n))
                 P[k] += np.asarray(self._pseudo["elements"](w, params, t, state_n, cases, *sub))
             else:  # no prescribed motion: the internal forces see the parameters only
-                e_el = {n: to_device(np.asarray(e[n])[k]) for n in self._element_names if n in e}
+                # only the design names: a tangent of zeros on another element parameter
+                # (a shape parameter not designed) would still differentiate the geometry
+                e_el = {n: to_device(np.asarray(e[n])[k]) for n in self._element_names
+                        if n in e and n in self.names}
                 P[k] += np.asarray(self._material_pseudo(w, params, t, e_el))
         return P
 
