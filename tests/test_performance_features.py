@@ -54,6 +54,25 @@ def test_missing_named_solver_says_how_to_install(monkeypatch):
     assert get_solver("auto").name == "superlu"  # auto falls back
 
 
+def test_mkl_runtime_found_without_importing_pypardiso(monkeypatch):
+    """PARDISO's library is found by a direct look in the environment (importing
+    pypardiso and its search cost 0.7 s of every CLI start); a wrong
+    PYPARDISO_MKL_RT falls back to pypardiso's search and ends in the
+    install message."""
+    if not HAS_PARDISO:
+        pytest.skip("MKL is not installed here")
+    import ctypes
+
+    path = linsolve._mkl_rt_path()
+    assert path is not None and "mkl_rt" in os.path.basename(path)
+    assert hasattr(ctypes.CDLL(path), "pardiso")
+    monkeypatch.setattr(linsolve, "_MKL", None)
+    monkeypatch.setenv("PYPARDISO_MKL_RT", "/nonexistent/libmkl_rt.so")
+    assert linsolve._mkl_rt_path() == "/nonexistent/libmkl_rt.so"
+    with pytest.raises(sg.InputError, match=r"pip install pypardiso"):
+        linsolve._load_mkl()
+
+
 def test_umfpack_message_names_its_package():
     if "umfpack" in linsolve.available():
         pytest.skip("scikit-umfpack is installed here")
