@@ -257,7 +257,8 @@ def _mkl_rt_path() -> str | None:
 
 
 def _load_mkl():
-    """The ``pardiso`` entry point of MKL's runtime library, found through pypardiso."""
+    """The ``pardiso`` entry point of MKL's runtime library (:func:`_mkl_rt_path`,
+    else found by pypardiso)."""
     # MKL's OpenMP threads otherwise spin for 200 ms after each factorisation and
     # take a core from the JAX kernels and NumPy work that follow (measured at 5k
     # DOFs: solves spread 0.064-0.20 s, with 0 they stay within 0.061-0.072 s; no

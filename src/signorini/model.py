@@ -313,7 +313,7 @@ class Model:
     #: element kernels run over chunks of this many cells on meshes of at least
     #: CHUNKED_FROM cells: one vmap over every cell streams each intermediate of
     #: the kernel through memory, a chunk keeps them in cache (the residual of
-    #: 450k cells: 285 -> 143 ms; 111k: 71 -> 57 ms; at 28k one vmap is faster)
+    #: 447k cells: 308 -> 139 ms; 112k: 77 -> 58 ms; at 28k one vmap is faster)
     CELL_CHUNK = 16384
     CHUNKED_FROM = 65536
 
