@@ -73,6 +73,23 @@ def test_mkl_runtime_found_without_importing_pypardiso(monkeypatch):
         linsolve._load_mkl()
 
 
+def test_mkl_runtime_lookup_takes_the_newest_in_the_environment(tmp_path, monkeypatch):
+    """Of several MKL runtimes in the environment's lib folder the newest is
+    taken (libmkl_rt.so.10 over .so.9 and .so.2); none there and none in the
+    user site: None (pypardiso's search then decides)."""
+    import site
+    import sys
+
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    monkeypatch.setattr(site, "USER_BASE", str(tmp_path / "user"))
+    monkeypatch.setattr(sys, "prefix", str(tmp_path / "env"))
+    assert linsolve._mkl_rt_path() is None
+    (tmp_path / "env" / "lib").mkdir(parents=True)
+    for name in ("libmkl_rt.so.2", "libmkl_rt.so.10", "libmkl_rt.so.9", "libmkl_core.so.3"):
+        (tmp_path / "env" / "lib" / name).write_bytes(b"")
+    assert linsolve._mkl_rt_path() == str(tmp_path / "env" / "lib" / "libmkl_rt.so.10")
+
+
 def test_umfpack_message_names_its_package():
     if "umfpack" in linsolve.available():
         pytest.skip("scikit-umfpack is installed here")

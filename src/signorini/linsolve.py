@@ -236,7 +236,8 @@ class Umfpack(LinearSolver):
 
 def _mkl_rt_path() -> str | None:
     """MKL's runtime library where pip installs it (``PYPARDISO_MKL_RT`` if set,
-    else the ``lib`` folder of this environment or of the user site), or None.
+    else the ``lib`` folder of this environment or of the user site; the newest
+    version if several), or None.
 
     A direct look costs under a millisecond; importing pypardiso and letting it
     search (``find_library`` runs ``ldconfig``, then a recursive glob of the
@@ -245,14 +246,18 @@ def _mkl_rt_path() -> str | None:
     if env:
         return env
     import glob
+    import re
     import site
     import sys
 
+    def version(path):  # libmkl_rt.so.2 -> (2,): the newest of several installed
+        return tuple(int(v) for v in re.findall(r"\d+", os.path.basename(path)))
+
     for base in (sys.prefix, site.USER_BASE):
         for pattern in ("lib/libmkl_rt.so*", "lib/libmkl_rt*.dylib", "Library/bin/mkl_rt*.dll"):
-            hits = sorted(glob.glob(os.path.join(base, pattern)), key=len)
+            hits = glob.glob(os.path.join(base, pattern))
             if hits:
-                return hits[0]
+                return max(hits, key=version)
     return None
 
 
