@@ -74,6 +74,12 @@ def reference_gradients(Xe):
     return dNdX, GAUSS_WEIGHTS * detJ
 
 
+def _points(Xe, kinematics):
+    """dN/dX (4 gauss, 4 nodes, 2) and the volume weights w (4,) of the kinematics."""
+    dNdX, detJ = _gradients(_DN, Xe)
+    return dNdX, kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+
+
 @dataclass(frozen=True)
 class Standard:
     """Full 2x2 Gauss integration of the displacement-based Q4."""
@@ -140,13 +146,13 @@ FBAR = FBar()
 def gauss_gradients(ue, Xe, kinematics=PLANE_STRAIN, formulation=STANDARD):
     """Displacement gradients (g, 3, 3) seen by the material at the Gauss points
     (Hbar for F-bar) and the volume weights w (g,)."""
-    dNdX, detJ = _gradients(_DN, Xe)
+    dNdX, w = _points(Xe, kinematics)
     H = kinematics.displacement_gradients(ue, Xe, _N, dNdX)
     if not formulation.linear:
         dNdX0, _ = _gradients(_DN0, Xe)
         H0 = kinematics.displacement_gradients(ue, Xe, _N0, dNdX0)[0]
         H = formulation.modify(H, H0)
-    return H, kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+    return H, w
 
 
 def _inverse_planar(F):
@@ -171,11 +177,10 @@ def element_update(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formu
     """
     hn = _history(material, hn)
     if formulation.linear:  # r = sum_g w B^T P, H = B u_e (no VJP of the gradients)
-        dNdX, detJ = _gradients(_DN, Xe)
-        w = kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+        dNdX, w = _points(Xe, kinematics)
         H = kinematics.displacement_gradients(ue, Xe, _N, dNdX)
         P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
-        return _forces(w, dNdX, kinematics.hoop_functions(Xe, _N), P), h
+        return _forces(w, dNdX, kinematics.hoop_functions(Xe, _N), P[:, :2, :2], P[:, 2, 2]), h
     w = gauss_gradients(ue, Xe, kinematics, formulation)[1]
     H, vjp = jax.vjp(lambda u: gauss_gradients(u, Xe, kinematics, formulation)[0], ue)
     P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
@@ -183,14 +188,14 @@ def element_update(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formu
     return r, h
 
 
-def _forces(w, dNdX, hoop, P):
-    """r (4, 2) = sum_g w B^T P for P (g, 3, 3): r_ai = sum_g w P_ij dN_a/dX_j
-    (+ w P_33 hoop_a for i = r, axisymmetric). A broadcast sum, not an einsum:
-    XLA on the CPU runs the vmapped einsum's tiny batched products 1.7x slower
-    (the residual of 27,816 cells: 12.3 against 7.2 ms)."""
-    r = jnp.sum((w[:, None, None, None] * P[:, None, :2, :2]) * dNdX[:, :, None, :], axis=(0, 3))
+def _forces(w, dNdX, hoop, P2, P33):
+    """r (4, 2) = sum_g w B^T P from the in-plane stresses P2 (g, 2, 2) and P_33
+    (g,): r_ai = sum_g w P_ij dN_a/dX_j (+ w P_33 hoop_a for i = r, axisymmetric).
+    A broadcast sum, not an einsum: XLA on the CPU runs the vmapped einsum's tiny
+    batched products 1.7x slower (the residual of 27,816 cells: 12.3 against 7.2 ms)."""
+    r = jnp.sum((w[:, None, None, None] * P2[:, None]) * dNdX[:, :, None, :], axis=(0, 3))
     if hoop is not None:
-        r = r.at[:, 0].add(jnp.sum((w * P[:, 2, 2])[:, None] * hoop, axis=0))
+        r = r.at[:, 0].add(jnp.sum((w * P33)[:, None] * hoop, axis=0))
     return r
 
 
@@ -212,8 +217,7 @@ def element_residual_tangent(ue, Xe, material, mp, hn=None, kinematics=PLANE_STR
     """
     hn = _history(material, hn)
     if formulation.linear:
-        dNdX, detJ = _gradients(_DN, Xe)
-        w = kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+        dNdX, w = _points(Xe, kinematics)
         rows, cols = (np.array(c) for c in zip(*kinematics.active))  # the non-zero components of H
         hv = kinematics.displacement_gradients(ue, Xe, _N, dNdX)[:, rows, cols]  # (g, na)
 
@@ -247,8 +251,7 @@ def _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation):
     na = rows.size
     # Hbar = c (I + H) - I is zero outside the in-plane block and the 33 entry
     brows, bcols = np.array([0, 0, 1, 1, 2]), np.array([0, 1, 0, 1, 2])
-    dNdX, detJ = _gradients(_DN, Xe)
-    w = kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+    dNdX, w = _points(Xe, kinematics)
     dNdX0, _ = _gradients(_DN0, Xe)
     # B_g (g, na, 8) and B_0 (na, 8): the displacement gradients are linear in u_e
     grad_g = lambda u: kinematics.displacement_gradients(u.reshape(4, 2), Xe, _N, dNdX)[:, rows, cols]
@@ -297,12 +300,10 @@ def _contract(w, dNdX, hoop, P, C):
     The active components are (H11, H12, H21, H22[, H33]): H_ij = u_a,i dN_a/dX_j
     in the plane, H33 = hoop_a u_a,r (axisymmetric). P (g, na), C (g, na, na).
     """
-    P2 = P[:, :4].reshape(-1, 2, 2)
+    r = _forces(w, dNdX, hoop, P[:, :4].reshape(-1, 2, 2), None if hoop is None else P[:, 4])
     C4 = C[:, :4, :4].reshape(-1, 2, 2, 2, 2)
-    r = jnp.einsum("g,gij,gaj->ai", w, P2, dNdX)
     K = jnp.einsum("g,gaj,gijkl,gbl->aibk", w, dNdX, C4, dNdX)
     if hoop is not None:
-        r = r.at[:, 0].add(jnp.einsum("g,g,ga->a", w, P[:, 4], hoop))
         K = K.at[:, 0, :, :].add(jnp.einsum("g,ga,gkl,gbl->abk", w, hoop,
                                             C[:, 4, :4].reshape(-1, 2, 2), dNdX))
         K = K.at[:, :, :, 0].add(jnp.einsum("g,gaj,gij,gb->aib", w, dNdX,

@@ -120,8 +120,8 @@ class DDM:
             else:  # no prescribed motion: the internal forces see the parameters only
                 # only the design names: a tangent of zeros on another element parameter
                 # (a shape parameter not designed) would still differentiate the geometry
-                e_el = {n: to_device(np.asarray(e[n])[k]) for n in self._element_names
-                        if n in e and n in self.names}
+                e_el = {n: to_device(np.asarray(e[n])[k]) for n in self.names
+                        if n in self._element_names}
                 P[k] += np.asarray(self._material_pseudo(w, params, t, e_el))
         return P
 
