@@ -256,6 +256,10 @@ def test_solution_argument_must_match_and_memory_counts_factors():
                  solver="superlu")
     b = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, solution=sol)
     assert a["R"] == pytest.approx(b["R"], rel=1e-10)
+    # the same problem built again (equal content, other objects) is the same problem
+    c = gradient(hertz_friction.hertz_friction_problem(n_fine=12), hertz.contact_work, ["R"],
+                 steps=3, options=TIGHT, solution=sol)
+    assert c["R"] == b["R"]
     assert a.memory["factors_per_increment"] > 0
     assert a.memory["per_increment"] > a.memory["factors_per_increment"]
     # the state shares the unknowns of its increment (no second copy)

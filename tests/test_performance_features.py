@@ -45,8 +45,11 @@ def test_missing_named_solver_says_how_to_install(monkeypatch):
         raise sg.InputError("solver 'pardiso' is not installed: `python3 -m pip install pypardiso` "
                             "(x86-64 only; it brings Intel MKL) (import failed: simulated)")
 
+    from signorini.solve import _MODELS
+
     monkeypatch.setattr(linsolve, "_MKL", None)
     monkeypatch.setattr(linsolve, "_load_mkl", no_mkl)
+    _MODELS.clear()  # a kept model keeps the solver it made before (model.cache)
     with pytest.raises(sg.InputError, match=r"pip install pypardiso"):
         get_solver("pardiso")
     with pytest.raises(sg.InputError, match=r"pip install pypardiso"):
@@ -345,17 +348,22 @@ def test_element_kernels_in_chunks_equal_one_vmap():
     from signorini.problems import forging
 
     names = ["phi1", "E"]
+    from signorini.solve import _MODELS
+
     ref_pb, pb = forging.forging_problem(), forging.forging_problem()
+    kw = dict(options=forging.options(), steps=4, sensitivities=names)
+    ref_m = model_for(ref_pb)
+    ref = sg.solve(ref_pb, **kw)
+    _MODELS.clear()  # the same problem would share ref_m: a second model
     m = model_for(pb)
-    assert model_for(ref_pb) is not m
+    assert m is not ref_m
     m.CELL_CHUNK, m.CHUNKED_FROM = 16, 0
     assert len(m.conn) % 16 != 0  # a padded last chunk
-    kw = dict(options=forging.options(), steps=4, sensitivities=names)
-    ref, got = sg.solve(ref_pb, **kw), sg.solve(pb, **kw)
+    got = sg.solve(pb, **kw)
     p = as_jax(pb.params)
     # the kernels at one state: the same numbers up to the order of summation
     inc, st = ref.increments[-1], ref.increments[-2].state
-    (R1, b1), (R2, b2) = (mm.local_tangents(inc.w, p, inc.t, st) for mm in (model_for(ref_pb), m))
+    (R1, b1), (R2, b2) = (mm.local_tangents(inc.w, p, inc.t, st) for mm in (ref_m, m))
     assert np.max(np.abs(R1 - R2)) <= 1e-13 * np.max(np.abs(R1))
     for x, y in zip(b1, b2):
         assert np.max(np.abs(x - y)) <= 1e-14 * np.max(np.abs(x))
@@ -370,7 +378,7 @@ def test_element_kernels_in_chunks_equal_one_vmap():
     assert np.max(np.abs(h_ref[..., 9])) > 0  # plastic flow happened
     assert np.max(np.abs(h - h_ref)) <= 1e-12 * np.max(np.abs(h_ref))  # from w's 1e-13
     w = got.increments[-1].w
-    s_ref = np.asarray(model_for(ref_pb).stresses(w, p, got.increments[-2].state))
+    s_ref = np.asarray(ref_m.stresses(w, p, got.increments[-2].state))
     s = np.asarray(m.stresses(w, p, got.increments[-2].state))
     assert np.max(np.abs(s - s_ref)) <= 1e-12 * np.max(np.abs(s_ref))
 
@@ -605,3 +613,53 @@ def test_memory_estimate_of_pardiso_matches_measurements():
 
     est = lambda n: resources.estimated_peak_memory(n, "pardiso") / resources.GB  # noqa: E731
     assert abs(est(224_848) / 1.77 - 1) < 0.2 and abs(est(1_057_264) / 6.8 - 1) < 0.2
+
+
+SCALE = 0.5  # read by a load below: such a function is keyed by its identity
+
+
+def test_a_problem_built_again_reuses_its_compiled_model():
+    """model_for keys a model by the content of what it is built from: the same
+    Hertz problem built again for other values shares the model (no retracing),
+    and solves exactly as a model built afresh; anything that changes the model
+    (mesh, shape nominal values, a closure value, a function reading a global
+    name) gets its own."""
+    import dataclasses
+
+    from signorini.solve import _MODELS
+    from signorini.errors import InputError
+    from signorini.loads import Pressure
+
+    a, b = hertz.hertz_problem({"R": 1.0}), hertz.hertz_problem({"R": 1.2})
+    m = model_for(a)
+    assert model_for(b) is m and b.mesh is not a.mesh
+    shared = sg.solve(b, sensitivities=["R"]).increments[-1]
+    _MODELS.clear()
+    fresh = sg.solve(hertz.hertz_problem({"R": 1.2}), sensitivities=["R"]).increments[-1]
+    assert model_for(b) is not m
+    assert np.max(np.abs(shared.w - fresh.w)) <= 1e-12 * np.max(np.abs(fresh.w))
+    assert np.max(np.abs(shared.sens["R"] - fresh.sens["R"])) <= 1e-9 * np.max(np.abs(fresh.sens["R"]))
+
+    m = model_for(a)
+    assert model_for(hertz.hertz_problem(n_fine=12)) is not m  # another mesh
+    assert model_for(dataclasses.replace(a, shape_nominal={"bump": 0.1})) is not m
+
+    def scaled(c):
+        return dataclasses.replace(a, loads=(Pressure("bottom", lambda p: c * p["P"], resultant=True),))
+    assert model_for(scaled(0.5)) is model_for(scaled(0.5))
+    assert model_for(scaled(0.5)) is not model_for(scaled(0.25))
+
+    def global_read():
+        return dataclasses.replace(a, loads=(Pressure("bottom", lambda p: SCALE * p["P"], resultant=True),))
+    assert model_for(global_read()) is not model_for(global_read())
+
+    # the values of a problem that reuses a model are checked like a new model's
+    def pole():
+        return dataclasses.replace(a, loads=(Pressure("bottom", lambda p: p["P"] / (p["R"] - 2.0),
+                                                      resultant=True),))
+    model_for(pole())
+    with pytest.raises(InputError, match="cannot be evaluated .* division by zero"):
+        model_for(pole().with_params(R=2.0))
+    _MODELS.clear()
+    with pytest.raises(InputError, match="cannot be evaluated .* division by zero"):
+        model_for(pole().with_params(R=2.0))  # a new model's check says the same

@@ -26,7 +26,7 @@ from .newton import NewtonOptions
 from .params import as_jax, check_names
 from .sensitivity import nonsmooth
 from .sensitivity.adjoint import Adjoint
-from .solve import solve
+from .solve import solve, structure_key
 
 MODES = ("ddm", "adjoint", "fd")
 #: compiled adjoints kept per model (one per response object)
@@ -254,23 +254,16 @@ def _adjoint(problem, response, names, steps, increments, options, solver, facto
     return out
 
 
-def _same(a, b) -> bool:
-    if a is b:
-        return True
-    if isinstance(a, dict) and isinstance(b, dict):  # shape fields: name -> array
-        return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
-    try:
-        return bool(a == b)
-    except (TypeError, ValueError):  # arrays inside: compared element-wise
-        return False
-
-
 def _check_solution(sol, problem, steps) -> None:
     """A solution given to the adjoint must be a converged solve of this problem."""
     if getattr(sol, "status", None) != "converged" or not sol.increments:
         raise InputError("the adjoint needs a converged solution (solution.status == 'converged')")
-    same = all(_same(getattr(sol.model.problem, f), getattr(problem, f)) for f in
-               ("mesh", "material", "fixed", "loads", "contact", "kinematics", "formulation", "shape"))
+    try:  # the same mesh and components, compared by content as the model cache does
+        same = structure_key(sol.model.problem) == structure_key(problem)
+    except TypeError:  # a component that cannot be hashed: the very same objects only
+        same = all(getattr(sol.model.problem, f) is getattr(problem, f) for f in
+                   ("mesh", "material", "fixed", "loads", "contact", "kinematics", "formulation",
+                    "shape", "shape_nominal"))
     if not same or dict(sol.params) != dict(problem.params):
         raise InputError("solution= must be a solve of this problem (same mesh, components and "
                          "parameter values); solve it again or pass the problem it was solved for")

@@ -264,11 +264,15 @@ def _mkl_rt_path() -> str | None:
 def _load_mkl():
     """The ``pardiso`` entry point of MKL's runtime library (:func:`_mkl_rt_path`,
     else found by pypardiso)."""
-    # MKL's OpenMP threads otherwise spin for 200 ms after each factorisation and
-    # take a core from the JAX kernels and NumPy work that follow (measured at 5k
-    # DOFs: solves spread 0.064-0.20 s, with 0 they stay within 0.061-0.072 s; no
-    # change at 56k). A value the user set is kept; read when MKL is loaded.
-    os.environ.setdefault("KMP_BLOCKTIME", "0")
+    # MKL's OpenMP threads wait this long (ms) for more work after a PARDISO call:
+    # long enough to span the gap between a factorisation and its back-substitution,
+    # short enough not to hold a core during the JAX kernels that follow (the default,
+    # 200 ms, spread the solves at 5k DOFs over 0.064-0.20 s). 0 put the threads to
+    # sleep after every call: at 5k DOFs a back-substitution then took 0.57 instead
+    # of 0.20 ms and a factorisation 2.0 instead of 1.7 ms (the frictional Hertz, 10
+    # increments: 0.56 -> 0.50 s; no change at 56k). A value the user set is kept;
+    # read when MKL is loaded.
+    os.environ.setdefault("KMP_BLOCKTIME", "1")
     lib = None
     path = _mkl_rt_path()
     if path is not None:

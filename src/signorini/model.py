@@ -139,17 +139,27 @@ class Model:
         for c in p.contact:
             specs += c.specs()
         check_names(names_in(specs), p.params, "the problem definition")
-        for s in specs:  # expressions are evaluated once here, before any JAX tracing
+        self._specs = specs
+        self.check_values(p.params)
+
+    def check_values(self, params) -> None:
+        """Every expression of the definition evaluates to finite numbers at these
+        values (before any JAX tracing; again for each problem that reuses the model)."""
+        for s in self._specs:
             if isinstance(s, str):
                 continue
             try:
-                v = np.asarray(resolve(s, p.params), dtype=float)
+                v = np.asarray(resolve(s, params), dtype=float)
             except SignoriniError:
                 raise
             except (TypeError, ValueError):
                 raise InputError(f"a load, support, material or contact value is {s!r}, which is "
                                  "not a number, a parameter name or a function of the "
                                  "parameters") from None
+            except ArithmeticError as e:  # e.g. a division by a parameter that is zero
+                raise InputError(f"a load, support, material or contact value {s!r} cannot be "
+                                 f"evaluated at these parameter values ({e}); every value must "
+                                 "be a finite number") from None
             if not np.all(np.isfinite(v)):
                 raise InputError(f"a load, support, material or contact value evaluates to {v} "
                                  "(NaN or inf); every value must be a finite number")
