@@ -60,7 +60,8 @@ def _digest(a: np.ndarray) -> tuple:
         except TypeError:  # an array that cannot be weakly referenced: no memo
             pass
         if len(_DIGESTS) > 64:
-            for k in [k for k, (r, _) in _DIGESTS.items() if r() is None] or list(_DIGESTS)[:32]:
+            kept = list(_DIGESTS.items())  # a copy: another thread may add meanwhile
+            for k in [k for k, (r, _) in kept if r() is None] or [k for k, _ in kept[:32]]:
                 _DIGESTS.pop(k, None)
     return d
 
