@@ -663,3 +663,28 @@ def test_a_problem_built_again_reuses_its_compiled_model():
     _MODELS.clear()
     with pytest.raises(InputError, match="cannot be evaluated .* division by zero"):
         model_for(pole().with_params(R=2.0))  # a new model's check says the same
+
+
+def test_element_stiffness_kept_while_the_element_parameters_are():
+    """A linear body's Ke and the DDM's dKe/dphi are keyed by the material and
+    shape values only: a solve for another friction coefficient or radius
+    reuses them and gives a fresh model's numbers; another E recomputes them."""
+    from signorini.solve import _MODELS, ddm_for
+
+    pb = hertz_friction_problem(n_fine=12)
+    m = model_for(pb)
+    names = ["E", "mu", "R"]
+    sg.solve(pb, steps=3, sensitivities=names)
+    Ke, dKe = m._ke[1], ddm_for(m, names)._dke[2]
+    other = {"mu": 0.35, "R": 1.05 * pb.params["R"]}
+    got = sg.solve(pb.with_params(**other), steps=3, sensitivities=names)
+    assert m._ke[1] is Ke and ddm_for(m, names)._dke[2] is dKe
+    sg.solve(pb.with_params(E=1.1 * pb.params["E"]), steps=3, sensitivities=names)
+    assert m._ke[1] is not Ke and ddm_for(m, names)._dke[2] is not dKe
+    _MODELS.clear()
+    ref = sg.solve(hertz_friction_problem(other, n_fine=12), steps=3, sensitivities=names)
+    assert model_for(pb) is not m
+    for a, b in zip(ref.increments, got.increments):
+        assert np.max(np.abs(a.w - b.w)) <= 1e-12 * np.max(np.abs(a.w))
+        for n in names:
+            assert np.max(np.abs(a.sens[n] - b.sens[n])) <= 1e-9 * np.max(np.abs(a.sens[n])), n

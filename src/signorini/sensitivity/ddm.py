@@ -135,7 +135,7 @@ class DDM:
         mat = [j for j in k if self.names[j] in self._element_names]
         if len(mat) * m.edofs.size * m.edofs.shape[1] * 8 > self.DKE_BUDGET:
             return False
-        key = tuple(sorted((n, float(v)) for n, v in params.items()))
+        key = m.element_key(params)  # dK_e/dphi depends on these values only
         names = tuple(self.names[j] for j in mat)
         if mat and (self._dke is None or self._dke[:2] != (key, names)):
             e = unit_tangents(params, list(names))
