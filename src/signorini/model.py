@@ -80,7 +80,7 @@ class Model:
         self.linear_elements = (bool(getattr(p.material, "linear", False)) and not self.n_state
                                 and isinstance(self.formulation, element.Standard))
         self._ke = None  # (element_key, Ke as JAX array, Ke as NumPy array)
-        self._element_names = False  # element_parameters(), once it is asked for
+        self._element_names = self.element_parameters()  # what Ke depends on (element_key)
         self._fixed_groups = None  # (distinct Fixed, index of each prescribed DOF's)
         self.pattern = SparsityPattern(layout.block_dofs(), layout.n_dof, layout.free)
         self.fext = jax.jit(self.external_forces)
@@ -515,8 +515,6 @@ class Model:
         every value if unknown): Ke and dKe/dphi are kept while it is unchanged,
         so a solve for another obstacle radius, load or friction coefficient reuses
         them (Ke at 56k DOFs: 25 ms per new value of R before)."""
-        if self._element_names is False:
-            self._element_names = self.element_parameters()
         names = params if self._element_names is None else self._element_names
         return tuple(sorted((k, float(params[k])) for k in names))
 

@@ -49,19 +49,20 @@ def _digest(a: np.ndarray) -> tuple:
     """(dtype, shape, BLAKE2 digest of the bytes) of an array; large arrays keep it
     while the same array object lives (a model key is rebuilt for every solve)."""
     a = np.asarray(a)
-    kept = _DIGESTS.get(id(a)) if a.nbytes >= _DIGEST_FROM else None
+    memo = a.nbytes >= _DIGEST_FROM
+    kept = _DIGESTS.get(id(a)) if memo else None
     if kept is not None and kept[0]() is a:
         return kept[1]
     d = (a.dtype.str, a.shape, hashlib.blake2b(np.ascontiguousarray(a).view(np.uint8),
                                               digest_size=16).digest())
-    if a.nbytes >= _DIGEST_FROM:
+    if memo:
         try:
             _DIGESTS[id(a)] = (weakref.ref(a), d)
         except TypeError:  # an array that cannot be weakly referenced: no memo
             pass
         if len(_DIGESTS) > 64:
-            kept = list(_DIGESTS.items())  # a copy: another thread may add meanwhile
-            for k in [k for k, (r, _) in kept if r() is None] or [k for k, _ in kept[:32]]:
+            items = list(_DIGESTS.items())  # a copy: another thread may add meanwhile
+            for k in [k for k, (r, _) in items if r() is None] or [k for k, _ in items[:32]]:
                 _DIGESTS.pop(k, None)
     return d
 
