@@ -271,6 +271,95 @@ def test_assembly_reuses_an_unchanged_element_block():
         assert abs(K - fresh(bl)).max() <= 1e-12 * abs(K).max()
 
 
+def test_assembled_tangent_states_only_true_index_properties():
+    """The assembly says its CSR indices are sorted and canonical (a solver then
+    skips SciPy's test of them) and passes the pattern's own index arrays: both
+    must be true of the matrix, as SciPy's own test of a copy finds."""
+    for pb in (hertz.hertz_problem(n_fine=8, size=8), hertz_friction_problem(refine=0)):
+        m, p = model_for(pb), as_jax(pb.params)
+        _, blocks = m.local_tangents(np.zeros(m.n_dof), p, 1.0, m.initial_state(np.zeros(m.n_dof), p))
+        K = m.pattern.assemble(blocks)
+        assert K.has_sorted_indices and K.has_canonical_format
+        assert K.indices is m.pattern.indices and K.indptr is m.pattern.indptr
+        copy = sp.csr_matrix((K.data.copy(), K.indices.copy(), K.indptr.copy()), shape=K.shape)
+        assert copy.has_sorted_indices and copy.has_canonical_format  # SciPy's own test
+        assert np.array_equal(K.toarray(), copy.toarray())
+
+
+def test_symmetry_figures_of_a_block_array_are_kept_only_while_it_lives():
+    """The symmetry test keeps the figures of a read-only block array; another array
+    (even one that reuses a freed array's address) and a writable one are tested
+    anew."""
+    from signorini.linsolve import blocks_symmetric
+
+    def frozen(a):
+        a = np.array(a, dtype=float)
+        a.flags.writeable = False
+        return a
+
+    sym = frozen(np.tile(np.array([[2.0, 1.0], [1.0, 2.0]]), (50, 1, 1)))
+    assert blocks_symmetric([sym]) and blocks_symmetric([sym])  # the second from the kept figures
+    for _ in range(20):  # freed arrays, whose ids the next ones may reuse
+        a = frozen(np.tile(np.array([[2.0, 1.0], [1.0, 2.0]]), (50, 1, 1)))
+        assert blocks_symmetric([a])
+        del a
+        b = frozen(np.tile(np.array([[2.0, 1.0], [0.0, 2.0]]), (50, 1, 1)))
+        assert not blocks_symmetric([b])
+        del b
+    w = np.tile(np.array([[2.0, 1.0], [1.0, 2.0]]), (50, 1, 1))
+    assert blocks_symmetric([w])
+    w[3, 0, 1] = 5.0  # a writable array may change between calls
+    assert not blocks_symmetric([w])
+    assert not blocks_symmetric([sym, frozen(np.array([[[0.0, 1.0], [0.0, 0.0]]]))])
+
+
+@pytest.mark.parametrize("transpose", [False, True])
+def test_backward_error_bound_asks_for_the_exact_value_when_it_matters(transpose):
+    """The check of a solve first divides by |K_ii| (a lower bound of max_j |K_ij|;
+    the exact maximum in rows without a diagonal): it may overstate the backward
+    error but never hide one. A solve accurate to round-off passes on the bound; a
+    solve with an error in a row whose diagonal is small against its off-diagonal
+    entries, or in a row without a diagonal, is refined as before."""
+    rng = np.random.default_rng(3)
+    n = 60
+    A = sp.random(n, n, density=0.1, random_state=4) + sp.diags(1.0 + rng.random(n))
+    A = A.tolil()
+    A[5, 5] = 0.0  # no diagonal (a closed contact node's multiplier row)
+    A[5, 7] = 3.0
+    A[8, 8] = 1e-6  # a tiny diagonal against an off-diagonal entry of 4
+    A[8, 2] = 4.0
+    A = A.tocsr()
+    A.eliminate_zeros()
+    M = (A.T if transpose else A).toarray()
+    exact_scale = np.max(np.abs(M), axis=1)
+    lu = sp.linalg.splu(A.tocsc())
+    b = rng.normal(size=n)
+
+    def exact_eta(x):
+        r = b - M @ x
+        return np.max(np.abs(r) / (exact_scale * np.max(np.abs(x)) + np.abs(b)))
+
+    def solver(err_row):
+        def solve(v, tr=False):  # an accurate solve, then an error in one component
+            x = lu.solve(v, trans="T" if tr else "N")
+            if err_row is not None:
+                x = x.copy()
+                x[err_row] += 1e-9 * np.max(np.abs(x))
+            return x
+        return solve
+
+    ok = linsolve.Factor(solver(None), A, transposable=True)
+    x = ok.solve(b, transpose=transpose)
+    assert ok.refinements == 0 and exact_eta(x) <= ok.backward_error <= linsolve.REFINE_TOL
+    for row in (5, 8, 20):
+        f = linsolve.Factor(solver(row), A, transposable=True)
+        f.solve(b, transpose=transpose)
+        assert f.refinements >= 1  # each correction re-plants the error: never below the tolerance
+        assert (transpose, True) in f._norm  # the exact row maximum was computed
+        assert np.allclose(f._norm[(transpose, True)], exact_scale)
+        assert np.allclose(f._norm[(transpose, False)][[5]], exact_scale[[5]])
+
+
 @pytest.mark.parametrize("friction", [False, True])
 def test_kept_stiffness_derivative_gives_the_jvp_pseudo_load(friction, monkeypatch):
     """Along a load path a linear body's element pseudo-load is (dK_e/dphi) u_e +

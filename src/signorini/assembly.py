@@ -72,4 +72,12 @@ class SparsityPattern:
         else:
             vals = np.concatenate([np.asarray(b).reshape(-1) for b in blocks])[self._keep]
             data = np.bincount(self._map, weights=vals, minlength=self.nnz)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        K = sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        # the pattern's own index arrays (SciPy keeps a view of the indices), so that a
+        # solver recognises the pattern by identity instead of comparing 1M indices
+        K.indices, K.indptr = self.indices, self.indptr
+        # the pattern is np.unique's sorted keys: rows ascending, columns sorted and
+        # unique in each row. Saying so spares a solver SciPy's test (0.26 ms at 56k DOFs)
+        K.has_sorted_indices = True
+        K.has_canonical_format = True
+        return K
