@@ -374,12 +374,50 @@ def test_kept_stiffness_derivative_gives_the_jvp_pseudo_load(friction, monkeypat
     o = sg.NewtonOptions(rtol=1e-12)
     kept = sg.solve(pb, steps=4, sensitivities=names, options=o, solver="superlu")
     ddm = sg.solve.__globals__["ddm_for"](kept.model, names)
-    assert ddm._dke is not None and ddm._dke[1] == ("E", "nu")  # dK_e/dphi was kept
+    # dK_e/dphi was kept for nu; for E it is K_e / E (the elastic stress is proportional to E)
+    assert ddm._dke is not None and ddm._dke[1] == ("nu",) and ddm._proportional == "E"
     monkeypatch.setattr(DDM, "_linear_pseudo", lambda *a: False)  # the JVP every increment
     jvp = sg.solve(pb, steps=4, sensitivities=names, options=o, solver="superlu")
     for a, b in zip(kept.increments, jvp.increments):
         for n in names:
             assert np.max(np.abs(a.sens[n] - b.sens[n])) <= 1e-10 * np.max(np.abs(b.sens[n])), n
+
+
+def test_pseudo_load_of_the_modulus_is_the_internal_force_over_it(monkeypatch):
+    """Elastic stress is proportional to E at fixed nu, so a linear body's pseudo-load
+    of E is its internal force over E: the same sensitivities as the JVP of the
+    element kernels (one step; E alone; a frictional path, whose kept dK_e/dphi
+    then holds nu only). Not used where E is not a parameter of its own."""
+    import dataclasses
+
+    from signorini.materials import LinearElastic, NeoHooke
+    from signorini.sensitivity import ddm as ddm_mod
+    from signorini.solve import _MODELS
+
+    o = TIGHT
+    for pb, steps, names in ((hertz.hertz_problem(n_fine=8, size=8), 1, ["R", "E", "P"]),
+                             (hertz.hertz_problem(n_fine=8, size=8), 1, ["E"]),
+                             (hertz_friction_problem(refine=0), 4, ["R", "mu", "E", "nu"])):
+        _MODELS.clear()
+        assert ddm_mod.proportional_parameter(model_for(pb)) == "E"
+        fast = sg.solve(pb, steps=steps, sensitivities=names, options=o)
+        with monkeypatch.context() as mp:
+            mp.setattr(ddm_mod, "proportional_parameter", lambda m: None)
+            _MODELS.clear()
+            jvp = sg.solve(pb, steps=steps, sensitivities=names, options=o)
+            assert sg.solve.__globals__["ddm_for"](jvp.model, names)._proportional is None
+        _MODELS.clear()
+        for a, b in zip(fast.increments, jvp.increments):
+            for n in names:
+                assert np.max(np.abs(b.sens[n])) > 0
+                assert np.max(np.abs(a.sens[n] - b.sens[n])) <= 1e-10 * np.max(np.abs(b.sens[n])), n
+    base = hertz.hertz_problem(n_fine=8, size=8)
+    for material, params in ((LinearElastic(E="k", nu="k"), {"k": 0.3}),  # E also sets nu
+                             (LinearElastic(E=lambda p: 2.0 * p["E"]), {}),  # an expression
+                             (LinearElastic(E=100.0), {}),  # a number: not a parameter
+                             (NeoHooke(), {})):  # not a linear body (K_e changes with u)
+        pb = dataclasses.replace(base, material=material, params={**base.params, **params})
+        assert ddm_mod.proportional_parameter(model_for(pb)) is None, material
 
 
 def test_element_pseudo_load_on_the_parameters_alone_equals_the_full_jvp():
@@ -762,7 +800,7 @@ def test_element_stiffness_kept_while_the_element_parameters_are():
 
     pb = hertz_friction_problem(n_fine=12)
     m = model_for(pb)
-    names = ["E", "mu", "R"]
+    names = ["E", "nu", "mu", "R"]  # dK_e/dphi kept for nu (E's is K_e / E)
     sg.solve(pb, steps=3, sensitivities=names)
     Ke, dKe = m._ke[1], ddm_for(m, names)._dke[2]
     other = {"mu": 0.35, "R": 1.05 * pb.params["R"]}

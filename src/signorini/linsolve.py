@@ -585,7 +585,9 @@ class Pardiso(LinearSolver):
                 # iparm(12) = 2: solve with A^T (a symmetric factor is its own transpose)
                 h.iparm[11] = 2 if transpose and mtype == 11 else 0
                 try:
-                    return np.ascontiguousarray(h.call(33, a, np.asfortranarray(b)))
+                    # columns contiguous in and out (PARDISO's layout): the check's
+                    # products and reductions then run over contiguous columns
+                    return h.call(33, a, np.asfortranarray(b))
                 finally:
                     h.iparm[11] = 0
             return solve

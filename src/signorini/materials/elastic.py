@@ -26,6 +26,11 @@ class _Elastic:
     E: Spec = "E"
     nu: Spec = "nu"
 
+    #: the constant the stress is proportional to at fixed nu (W is linear in the
+    #: Lame constants, both proportional to E): the DDM's pseudo-load of E in a
+    #: linear body is then its internal force over E
+    stress_proportional_to = "E"
+
     def specs(self):
         return (self.E, self.nu)
 

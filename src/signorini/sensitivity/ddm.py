@@ -22,6 +22,26 @@ from .._jax import jax, jnp, to_device
 from ..params import unit_tangents
 
 
+def proportional_parameter(model) -> str | None:
+    """The design parameter to which a linear body's element stiffness is
+    proportional, or None.
+
+    A material may name, in ``stress_proportional_to``, the constant its stress is
+    proportional to at fixed other constants (the elastic materials: E, at fixed
+    nu). If that constant is a parameter name used nowhere else in the material
+    and not a shape parameter, then K_e(phi) = E K_e(E = 1) and the pseudo-load
+    of E is the internal force over E: one product with the kept K_e instead of
+    a JVP of the element kernels (7.9 -> 1.2 ms at 56k DOFs) and no dK_e/dE."""
+    field = getattr(model.material, "stress_proportional_to", None)
+    if field is None or not model.linear_elements or model.element_parameters() is None:
+        return None
+    spec = getattr(model.material, field)
+    if not isinstance(spec, str) or list(model.material.specs()).count(spec) != 1 \
+            or spec in model._shape_names:
+        return None
+    return spec
+
+
 class DDM:
     """Batched DDM pseudo-loads and sensitivity solves for one model.
 
@@ -67,6 +87,11 @@ class DDM:
         self._dke_fn = jax.jit(jax.vmap(lambda p, e: jax.jvp(model._stiffness, (p,), (e,))[1],
                                         (None, 0)))
         self._dke = None  # (key, names, (n, n_cells, 8, 8) NumPy)
+        self._proportional = proportional_parameter(model)
+        edofs = model.edofs
+        self._fint = jax.jit(lambda Ke, w: jnp.zeros(model.n_dof).at[edofs.ravel()].add(
+            jnp.einsum("eij,ej->ei", Ke, w[edofs]).ravel()))
+
 
     def solve(self, factor, w, params, t, state_n=None, state_dot_n=None,
               reuse_stiffness: bool = False):
@@ -92,7 +117,8 @@ class DDM:
         cases = m._cases(w, params, t, state_n) if m.has_contact_history else None
         P = self._pseudo_loads(w, params, t, state_n, cases, w_dot, e, state_dot_n, reuse_stiffness)
         t1 = time.perf_counter()
-        w_dot[:, m.free] = -factor.solve(np.ascontiguousarray(P[:, m.free].T)).reshape(m.free.size, -1).T
+        # (n_free, n_names) with contiguous columns, as the solvers take them
+        w_dot[:, m.free] = -factor.solve(P[:, m.free].T).reshape(m.free.size, -1).T
         t2 = time.perf_counter()
         return w_dot, {"pseudo_load": t1 - t0, "back_substitution": t2 - t1}
 
@@ -107,7 +133,7 @@ class DDM:
         moves = np.any(w_dot[:, m.prescribed] != 0.0, axis=1) if m.prescribed.size else \
             np.zeros(len(self.names), bool)
         el = np.array([n in self._element_names for n in self.names]) | moves
-        if el.all():
+        if el.all() and (self._proportional not in self.names or moves.any()):
             return np.asarray(self._pseudo["all"](w, params, t, state_n, cases, wd, e, state_dot_n))
         P = np.array(self._pseudo["rest"](w, params, t, state_n, cases, wd, e, state_dot_n))
         if el.any():
@@ -118,12 +144,22 @@ class DDM:
                 sub = jax.tree_util.tree_map(lambda a: a[k], (wd, e, state_dot_n))
                 P[k] += np.asarray(self._pseudo["elements"](w, params, t, state_n, cases, *sub))
             else:  # no prescribed motion: the internal forces see the parameters only
-                # only the design names: a tangent of zeros on another element parameter
-                # (a shape parameter not designed) would still differentiate the geometry
-                e_el = {n: to_device(np.asarray(e[n])[k]) for n in self.names
-                        if n in self._element_names}
-                P[k] += np.asarray(self._material_pseudo(w, params, t, e_el))
+                prop = [j for j in k if self.names[j] == self._proportional]
+                if prop:  # K_e proportional to it: dK_e/dE u_e = K_e u_e / E
+                    P[prop[0]] += self._internal_forces(w, params) / float(params[self._proportional])
+                k = np.array([j for j in k if self.names[j] != self._proportional], dtype=int)
+                if k.size:
+                    # only the design names: a tangent of zeros on another element parameter
+                    # (a shape parameter not designed) would still differentiate the geometry
+                    e_el = {n: to_device(np.asarray(e[n])[k]) for n in self.names
+                            if n in self._element_names and n != self._proportional}
+                    P[k] += np.asarray(self._material_pseudo(w, params, t, e_el))
         return P
+
+    def _internal_forces(self, w, params) -> np.ndarray:
+        """(n_dof,) internal forces K_e u_e of a linear body, from its kept K_e
+        (compiled: 2.2 against 6.7 ms for NumPy's batched product at 225k DOFs)."""
+        return np.asarray(self._fint(self.model.element_stiffness(params)[0], w))
 
     #: largest dK_e/dphi kept (bytes); above it the pseudo-load is a JVP every increment
     DKE_BUDGET = 512 * 2**20
@@ -132,7 +168,8 @@ class DDM:
         """Add (dK_e/dphi_k) u_e + K_e du_e/dphi_k to P[k] (a linear body); False
         if dK_e/dphi would exceed :attr:`DKE_BUDGET`."""
         m = self.model
-        mat = [j for j in k if self.names[j] in self._element_names]
+        mat = [j for j in k if self.names[j] in self._element_names
+               and self.names[j] != self._proportional]  # dK_e/dE = K_e / E: not kept
         if len(mat) * m.edofs.size * m.edofs.shape[1] * 8 > self.DKE_BUDGET:
             return False
         key = m.element_key(params)  # dK_e/dphi depends on these values only
@@ -147,6 +184,8 @@ class DDM:
             re = np.zeros(m.edofs.shape)
             if j in mat:
                 re += np.einsum("eij,ej->ei", self._dke[2][mat.index(j)], ue)
+            elif self.names[j] == self._proportional:
+                re += np.matmul(Ke, ue[..., None])[..., 0] / float(params[self._proportional])
             wde = w_dot[j][m.edofs]
             if np.any(wde):
                 re += np.einsum("eij,ej->ei", Ke, wde)
