@@ -75,12 +75,14 @@ against the adjoint backward pass, and of the wall times over the plain solve.
         [--solver auto]
 
 Writes benchmarks/results/adjoint.csv and adjoint_memory.csv (``--small``:
-adjoint_small.csv and adjoint_memory_small.csv).
+adjoint_small.csv and adjoint_memory_small.csv); the rows of a problem not in
+``--problems`` are kept from the file as they were.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import resource
@@ -459,7 +461,8 @@ def main():
     if rows:
         print(f"\nTiming, seconds: fastest of {args.repeat} runs after a compiling one in each process "
               "(JIT compile time excluded); DDM at 'nodes' extrapolated (a + b n) where ddm_extrapolated")
-        report(rows, RESULTS / f"adjoint{suffix}.csv", width=10)
+        report(_keep_other_problems(rows, RESULTS / f"adjoint{suffix}.csv"),
+               RESULTS / f"adjoint{suffix}.csv", width=10)
         compact(rows, args.repeat)
     for r in rows:
         if str(r.get("params", "")).startswith("nodes") and "backward_over_forward" in r:
@@ -477,7 +480,23 @@ def main():
                   f"{s['crossover_wall']:.2f} parameters")
     if mem_rows:
         print("\nMemory of the all-nodes adjoint (one run per process, JIT included)")
-        report(mem_rows, RESULTS / f"adjoint_memory{suffix}.csv", width=10)
+        report(_keep_other_problems(mem_rows, RESULTS / f"adjoint_memory{suffix}.csv"),
+               RESULTS / f"adjoint_memory{suffix}.csv", width=10)
+
+
+def _keep_other_problems(rows: list[dict], path: Path) -> list[dict]:
+    """``rows`` with the rows of ``path`` for the problems not measured in this run
+    (``--problems hertz`` re-measures Hertz and keeps the forging rows), in the
+    file's order of problems."""
+    if not path.exists():
+        return rows
+    with open(path, newline="") as f:
+        old = list(csv.DictReader(f))
+    ran = {r["problem"] for r in rows}
+    order = list(dict.fromkeys([r["problem"] for r in old] + [r["problem"] for r in rows]))
+    merged = [r for name in order
+              for r in (rows if name in ran else old) if r["problem"] == name]
+    return merged
 
 
 if __name__ == "__main__":
