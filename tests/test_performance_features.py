@@ -273,8 +273,9 @@ def test_assembly_reuses_an_unchanged_element_block():
 
 def test_assembled_tangent_states_only_true_index_properties():
     """The assembly says its CSR indices are sorted and canonical (a solver then
-    skips SciPy's test of them) and passes the pattern's own index arrays: both
-    must be true of the matrix, as SciPy's own test of a copy finds."""
+    skips SciPy's test of them), passes the pattern's own index arrays and where
+    the diagonal entries are: all must be true of the matrix, as SciPy's own
+    tests of a copy find."""
     for pb in (hertz.hertz_problem(n_fine=8, size=8), hertz_friction_problem(refine=0)):
         m, p = model_for(pb), as_jax(pb.params)
         _, blocks = m.local_tangents(np.zeros(m.n_dof), p, 1.0, m.initial_state(np.zeros(m.n_dof), p))
@@ -284,6 +285,10 @@ def test_assembled_tangent_states_only_true_index_properties():
         copy = sp.csr_matrix((K.data.copy(), K.indices.copy(), K.indptr.copy()), shape=K.shape)
         assert copy.has_sorted_indices and copy.has_canonical_format  # SciPy's own test
         assert np.array_equal(K.toarray(), copy.toarray())
+        # the diagonal from the positions the assembly carries is SciPy's diagonal
+        assert K.diagonal_positions is not None and not hasattr(copy, "diagonal_positions")
+        assert np.array_equal(linsolve.diagonal(K), copy.diagonal())
+        assert np.array_equal(linsolve.diagonal(copy), copy.diagonal())
 
 
 def test_symmetry_figures_of_a_block_array_are_kept_only_while_it_lives():

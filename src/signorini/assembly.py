@@ -50,6 +50,10 @@ class SparsityPattern:
         self.indptr = np.zeros(self.n + 1, dtype=np.int64)
         np.add.at(self.indptr, r + 1, 1)
         self.indptr = np.cumsum(self.indptr).astype(np.int32 if self.nnz < 2**31 else np.int64)
+        # where each row's diagonal entry is in the data (None if one is not in the pattern)
+        diag = np.arange(self.n, dtype=np.int64) * (self.n + 1)
+        pos = np.minimum(np.searchsorted(uniq, diag), max(uniq.size - 1, 0))
+        self.diagonal_positions = pos if uniq.size and np.all(uniq[pos] == diag) else None
 
     def assemble(self, blocks: list[np.ndarray]) -> sp.csr_matrix:
         """CSR matrix (n_free, n_free) from block values in the order of ``block_dofs``.
@@ -80,4 +84,7 @@ class SparsityPattern:
         # unique in each row. Saying so spares a solver SciPy's test (0.26 ms at 56k DOFs)
         K.has_sorted_indices = True
         K.has_canonical_format = True
+        # read by linsolve.diagonal: the diagonal as a take (K.diagonal() searches every
+        # row: 0.29 against 0.06 ms at 56k DOFs, 1.75 ms at 225k)
+        K.diagonal_positions = self.diagonal_positions
         return K

@@ -91,7 +91,7 @@ class Factor:
             if K.nnz:
                 rn[filled] = np.maximum.reduceat(np.abs(K.data), K.indptr[:-1][filled])
         else:
-            rn = np.abs(K.diagonal())
+            rn = np.abs(diagonal(self.K))
             zero = np.flatnonzero(rn == 0.0)
             if zero.size:  # rows (K^T: columns) without a diagonal: their exact maximum
                 if transpose:
@@ -198,6 +198,16 @@ class Factor:
         keep = not self._transposable and self._transpose_factor is not None
         return Factor(self._solve, K, transpose_factor=transposed if keep else None,
                       transposable=self._transposable)
+
+
+def diagonal(K) -> np.ndarray:
+    """The diagonal of K: a ``take`` of the positions an assembled tangent carries
+    (``SparsityPattern.assemble`` sets ``K.diagonal_positions``), else SciPy's."""
+    pos = getattr(K, "diagonal_positions", None)
+    if pos is not None and getattr(K, "format", None) == "csr" and pos.size == K.shape[0] \
+            and pos.size and int(pos[-1]) < K.data.size:
+        return K.data.take(pos)
+    return K.diagonal()
 
 
 def _residual(K, x, b):
