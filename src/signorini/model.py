@@ -434,6 +434,12 @@ class Model:
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
 
+    def linear_forces(self, Ke, w):
+        """(n_dof,) internal forces sum_e K_e u_e of a linear body with element
+        stiffness Ke (n_cells, 8, 8) (traceable)."""
+        re = jnp.einsum("eij,ej->ei", Ke, w[self.edofs])
+        return jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
+
     def _local_impl(self, w, params, t, state_n=None, cases=None, Ke=None):
         """Residual and the Jacobian blocks of every element and contact node
         (``Ke``: the constant element stiffness of a linear body, if known; it is
@@ -442,10 +448,10 @@ class Model:
         if Ke is None:
             re, Ke_new, _ = self._elements(w, params, state_n, tangent=True)
             blocks = [Ke_new]
+            R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
         else:
-            re = jnp.einsum("eij,ej->ei", Ke, w[self.edofs])
+            R = self.linear_forces(Ke, w)
             blocks = []
-        R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
         R = R - self.external_forces(self.reference(params), params, t)
         for i, s, x, lam, A, geo, cp, Xs in self._surface_inputs(w, params, t):
             h = self._node_history(i, state_n, cases)

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jax import jax, jnp, to_device
+from .._jax import jax, to_device
 from ..params import unit_tangents
 
 
@@ -88,9 +88,7 @@ class DDM:
                                         (None, 0)))
         self._dke = None  # (key, names, (n, n_cells, 8, 8) NumPy)
         self._proportional = proportional_parameter(model)
-        edofs = model.edofs
-        self._fint = jax.jit(lambda Ke, w: jnp.zeros(model.n_dof).at[edofs.ravel()].add(
-            jnp.einsum("eij,ej->ei", Ke, w[edofs]).ravel()))
+        self._fint = jax.jit(model.linear_forces)
 
     def solve(self, factor, w, params, t, state_n=None, state_dot_n=None,
               reuse_stiffness: bool = False):
@@ -183,10 +181,10 @@ class DDM:
             re = np.zeros(m.edofs.shape)
             if j in mat:
                 re += np.einsum("eij,ej->ei", self._dke[2][mat.index(j)], ue)
-            elif self.names[j] == self._proportional:
-                re += np.matmul(Ke, ue[..., None])[..., 0] / float(params[self._proportional])
-            wde = w_dot[j][m.edofs]
-            if np.any(wde):
-                re += np.einsum("eij,ej->ei", Ke, wde)
+            v = w_dot[j][m.edofs]  # K_e du_e/dphi
+            if self.names[j] == self._proportional:  # + dK_e/dE u_e = K_e u_e / E
+                v = v + ue / float(params[self._proportional])
+            if np.any(v):
+                re += np.einsum("eij,ej->ei", Ke, v)
             P[j] += np.bincount(flat, weights=re.ravel(), minlength=m.n_dof)
         return True
