@@ -16,13 +16,13 @@ import logging
 import threading
 import time
 import types
-import weakref
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from ._jax import to_device
+from ._memo import ObjectMemo
 from .errors import ConvergenceError, InputError, SingularTangentError
 from .linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
 from .model import Model
@@ -42,7 +42,7 @@ _MODELS: OrderedDict = OrderedDict()
 
 #: arrays of at least this many bytes keep their digest (by identity) between calls
 _DIGEST_FROM = 1 << 16
-_DIGESTS: dict = {}
+_DIGESTS = ObjectMemo(64)
 
 
 def _digest(a: np.ndarray) -> tuple:
@@ -50,20 +50,12 @@ def _digest(a: np.ndarray) -> tuple:
     while the same array object lives (a model key is rebuilt for every solve)."""
     a = np.asarray(a)
     memo = a.nbytes >= _DIGEST_FROM
-    kept = _DIGESTS.get(id(a)) if memo else None
-    if kept is not None and kept[0]() is a:
-        return kept[1]
-    d = (a.dtype.str, a.shape, hashlib.blake2b(np.ascontiguousarray(a).view(np.uint8),
-                                              digest_size=16).digest())
-    if memo:
-        try:
-            _DIGESTS[id(a)] = (weakref.ref(a), d)
-        except TypeError:  # an array that cannot be weakly referenced: no memo
-            pass
-        if len(_DIGESTS) > 64:
-            items = list(_DIGESTS.items())  # a copy: another thread may add meanwhile
-            for k in [k for k, (r, _) in items if r() is None] or [k for k, _ in items[:32]]:
-                _DIGESTS.pop(k, None)
+    d = _DIGESTS.get(a) if memo else None
+    if d is None:
+        d = (a.dtype.str, a.shape, hashlib.blake2b(np.ascontiguousarray(a).view(np.uint8),
+                                                  digest_size=16).digest())
+        if memo:
+            _DIGESTS.put(a, d)
     return d
 
 
