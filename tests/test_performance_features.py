@@ -365,6 +365,54 @@ def test_backward_error_bound_asks_for_the_exact_value_when_it_matters(transpose
         assert np.allclose(f._norm[(transpose, False)][[5]], exact_scale[[5]])
 
 
+@needs_pardiso
+def test_mkl_product_of_the_check_equals_scipys():
+    """A PARDISO factor checks its solves with MKL's threaded sparse product:
+    b - K x and b - K^T x equal SciPy's for one and several columns, whatever
+    their memory layout; where it cannot serve (64-bit indices) it says so and
+    SciPy's product is used; and the check it feeds still refines an error."""
+    rng = np.random.default_rng(5)
+    n = 300
+    A = (sp.random(n, n, density=0.05, random_state=6) + sp.diags(2.0 + rng.random(n))).tocsr()
+    A.indices, A.indptr = A.indices.astype(np.int32), A.indptr.astype(np.int32)
+    prod = linsolve._MklProduct(linsolve._mkl().lib, A)
+    assert prod.ok
+    for transpose in (False, True):
+        M = (A.T if transpose else A).toarray()
+        for shape in ((n,), (n, 3)):
+            x, b = rng.normal(size=shape), rng.normal(size=shape)
+            for xx in (x, np.asfortranarray(x)):
+                r = prod(xx, b, transpose)
+                assert r.shape == b.shape
+                np.testing.assert_allclose(r, b - M @ x, rtol=0, atol=1e-13 * np.abs(M).max() * 10)
+    # the product keeps the arrays it points into, whatever becomes of the matrix
+    B = A.copy()
+    kept = linsolve._MklProduct(linsolve._mkl().lib, B)
+    x = rng.normal(size=n)
+    expected = -(B @ x)
+    B.data = np.zeros_like(B.data)
+    np.testing.assert_allclose(kept(x, np.zeros(n)), expected, atol=1e-12)
+    # 64-bit indices: no MKL product, the factor falls back to SciPy's
+    A64 = A.copy()
+    A64.indices, A64.indptr = A64.indices.astype(np.int64), A64.indptr.astype(np.int64)
+    assert linsolve._MklProduct(linsolve._mkl().lib, A64)(x, x) is None
+    # a PARDISO factor uses it; an error planted in its first solve is found and
+    # refined away
+    f = get_solver("pardiso").factorize(A)
+    assert isinstance(f._residual_of, linsolve._MklProduct) and f._residual_of.ok
+    b = rng.normal(size=n)
+    good, calls = f._solve, []
+
+    def planted(v, tr=False):
+        calls.append(1)
+        return good(v, tr) + (1e-8 * (np.arange(n) == 7) if len(calls) == 1 else 0.0)
+
+    f._solve = planted
+    x = f.solve(b)
+    assert f.refinements == 1 and f.backward_error <= linsolve.REFINE_TOL
+    assert np.max(np.abs(A @ x - b)) < 1e-13 * np.max(np.abs(b)) * np.abs(A).max()
+
+
 @pytest.mark.parametrize("friction", [False, True])
 def test_kept_stiffness_derivative_gives_the_jvp_pseudo_load(friction, monkeypatch):
     """Along a load path a linear body's element pseudo-load is (dK_e/dphi) u_e +

@@ -57,8 +57,10 @@ class Factor:
     (factorised once, on first use)."""
 
     def __init__(self, solve, K: sp.spmatrix, refactor=None, transpose_factor=None,
-                 transposable: bool = False):
+                 transposable: bool = False, residual=None):
         self._solve = solve
+        # (x, b, transpose) -> b - K x (K^T x), or None if it cannot; default SciPy's product
+        self._residual_of = residual
         self._transposable = transposable
         self._refactor = refactor  # () -> a more accurate solve function, if the solver has one
         self._transpose_factor = transpose_factor
@@ -164,14 +166,20 @@ class Factor:
         x = step(b)
         if not np.all(np.isfinite(x)):
             raise SingularTangentError("the linear solve returned non-finite values (singular tangent)")
-        r = _residual(K, x, b)
+        res = self._residual_of
+
+        def residual(x):
+            r = None if res is None else res(x, b, transpose)
+            return _residual(K, x, b) if r is None else r
+
+        r = residual(x)
         eta = self._backward_error(r, x, b, transpose)
         for _ in range(REFINE_STEPS):
             if eta <= REFINE_TOL:
                 break
             x_new = x + step(r)
             self.refinements += 1
-            r_new = _residual(K, x_new, b)
+            r_new = residual(x_new)
             eta_new = self._backward_error(r_new, x_new, b, transpose)
             if eta_new < eta:
                 x, r = x_new, r_new
@@ -217,6 +225,98 @@ def _residual(K, x, b):
     for j in range(x.shape[1]):
         r[:, j] = b[:, j] - K @ x[:, j]
     return r
+
+
+class _MatrixDescr(ctypes.Structure):
+    """MKL's ``struct matrix_descr``: type, fill mode, diagonal type."""
+    _fields_ = [("type", ctypes.c_int), ("mode", ctypes.c_int), ("diag", ctypes.c_int)]
+
+
+def _sparse_blas(lib):
+    """MKL's sparse BLAS entry points (inspector-executor API), typed once."""
+    if not hasattr(lib, "_signorini_sparse"):
+        vp, i32, d = ctypes.c_void_p, ctypes.c_int32, ctypes.c_double
+        create = lib.mkl_sparse_d_create_csr
+        create.argtypes = [ctypes.POINTER(vp), ctypes.c_int, i32, i32, vp, vp, vp, vp]
+        mv = lib.mkl_sparse_d_mv
+        mv.argtypes = [ctypes.c_int, d, vp, _MatrixDescr, vp, d, vp]
+        mm = lib.mkl_sparse_d_mm
+        mm.argtypes = [ctypes.c_int, d, vp, _MatrixDescr, ctypes.c_int, vp, i32, i32, d, vp, i32]
+        destroy = lib.mkl_sparse_destroy
+        destroy.argtypes = [vp]
+        for f in (create, mv, mm, destroy):
+            f.restype = ctypes.c_int  # sparse_status_t, 0 = success
+        lib._signorini_sparse = (create, mv, mm, destroy)
+    return lib._signorini_sparse
+
+
+class _MklProduct:
+    """b - A x (``transpose``: b - A^T x) by MKL's sparse BLAS, for the check of a
+    PARDISO solve.
+
+    It runs on MKL's OpenMP threads, like PARDISO: on two cores 2.5x SciPy's
+    one-thread product (3 columns at 56k DOFs: 0.37 against 1.03 ms; one column
+    0.14 against 0.34 ms). The handle refers to A's arrays without copying them;
+    it is made on the first product (0.02 ms) and destroyed with this object.
+    Returns None where it cannot serve (64-bit indices, an MKL without the
+    routines, a failed call): the caller then uses SciPy's product."""
+
+    _GENERAL = _MatrixDescr(20, 40, 50)  # general matrix (fill mode, diagonal unused)
+
+    def __init__(self, lib, A: sp.csr_matrix):
+        self._lib, self._h = lib, None
+        self._A = A
+        # the arrays themselves: the handle points into them, whatever becomes of A
+        self._arrays = (A.indptr, A.indices, A.data)
+        self.ok = (A.shape[0] == A.shape[1] and A.indptr.dtype == np.int32
+                   and A.indices.dtype == np.int32 and A.data.dtype == np.float64
+                   and A.data.flags.c_contiguous and A.indices.flags.c_contiguous
+                   and A.indptr.flags.c_contiguous)
+
+    def _handle(self):
+        if self._h is None and self.ok:
+            try:
+                create = _sparse_blas(self._lib)[0]
+            except AttributeError:  # an MKL without the inspector-executor API
+                self.ok = False
+                return None
+            (indptr, indices, data), h = self._arrays, ctypes.c_void_p()
+            n = self._A.shape[0]
+            if create(ctypes.byref(h), 0, n, n, indptr.ctypes.data, indptr.ctypes.data + 4,
+                      indices.ctypes.data, data.ctypes.data) != 0:
+                self.ok = False
+                return None
+            self._h = h
+        return self._h
+
+    def __call__(self, x, b, transpose=False):
+        h = self._handle()
+        if h is None:
+            return None
+        _, mv, mm, _ = _sparse_blas(self._lib)
+        op = 11 if transpose else 10  # SPARSE_OPERATION_TRANSPOSE / _NON_TRANSPOSE
+        n = self._A.shape[0]
+        if x.ndim == 1:
+            x = np.ascontiguousarray(x, dtype=float)
+            r = np.array(b, dtype=float, order="C")
+            status = mv(op, -1.0, h, self._GENERAL, x.ctypes.data, 1.0, r.ctypes.data)
+        else:  # columns contiguous (PARDISO's layout): SPARSE_LAYOUT_COLUMN_MAJOR
+            x = np.asfortranarray(x, dtype=float)
+            r = np.array(b, dtype=float, order="F")
+            status = mm(op, -1.0, h, self._GENERAL, 102, x.ctypes.data, x.shape[1], n, 1.0,
+                        r.ctypes.data, n)
+        if status != 0:
+            self.ok = False
+            return None
+        return r
+
+    def __del__(self):
+        if self._h is not None:
+            try:
+                _sparse_blas(self._lib)[3](self._h)
+            except Exception:  # noqa: BLE001 - interpreter shutdown
+                pass
+            self._h = None
 
 
 class LinearSolver:
@@ -611,7 +711,8 @@ class Pardiso(LinearSolver):
             h.generation += 1
             return solver_of(h.generation)
 
-        factor = Factor(solver_of(h.generation), A, None if fresh else refactor, transposable=True)
+        factor = Factor(solver_of(h.generation), A, None if fresh else refactor, transposable=True,
+                        residual=_MklProduct(self._f.lib, A))
         factor.owner = self  # keeps this solver, and so its PARDISO handles, alive
         factor.nbytes = 8 * abs(int(h.iparm[17]))  # iparm(18): non-zeros of the factors
         return factor
