@@ -313,6 +313,30 @@ def test_non_integer_steps_in_api(small):
     ours(e, "positive integer")
 
 
+def test_non_differentiable_expression_is_named_not_a_singular_tangent(small, monkeypatch):
+    """A modulus E = 100 + sqrt(k) at k = 0: JAX's tangent through it is NaN. The
+    DDM says so before any sensitivity solve, naming the parameters, instead of
+    a linear solver reporting a singular tangent; the solve without those
+    sensitivities is unaffected."""
+    import jax.numpy as jnp
+
+    from signorini import linsolve
+
+    mat = dataclasses.replace(small.material, E=lambda p: 100.0 + jnp.sqrt(p["k"]))
+    pb = dataclasses.replace(small, material=mat, params={**small.params, "k": 0.0})
+    solves = []
+    real = linsolve.Factor.solve
+    monkeypatch.setattr(linsolve.Factor, "solve", lambda self, b, transpose=False: (
+        solves.append(np.ndim(b)), real(self, b, transpose))[1])
+    with pytest.raises(ConvergenceError) as e:
+        sg.solve(pb, sensitivities=["k"])
+    ours(e, "pseudo-load of 'k' is not finite")
+    assert "not differentiable" in str(e.value)
+    assert 2 not in solves  # no sensitivity solve (the DDM's right-hand sides are 2-D)
+    sol = sg.solve(pb)
+    assert sol.status == "converged"
+
+
 # ---------------------------------------------- 5 no silent non-physical result
 def test_body_starts_deep_inside_obstacle_is_recorded(tmp_path):
     """--set bump=10 lifts the top face ~0.9 mm into the cylinder."""

@@ -350,6 +350,13 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         t_k = time.perf_counter()
         K = model.pattern.assemble(blocks) if keep_factors or ddm is not None else None
         t_k = time.perf_counter() - t_k  # booked with the DDM's factorisation, as before
+        # the pseudo-loads need no factorisation: computed first, so that each solve
+        # follows its factorisation while MKL's threads are awake (DDM.pseudo_loads)
+        try:
+            loads = None if ddm is None else ddm.pseudo_loads(
+                to_device(w_trial), params, t_new, state_n, state_dot, reuse_stiffness=steps >= 3)
+        except InputError as e:  # a non-differentiable expression: keep what converged
+            raise fail(str(e)) from None
         if keep_factors:
             try:
                 inc.factor = _own_factor(lin, K)
@@ -365,10 +372,16 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
                 # kept only if the sensitivities reach the backward error of a fresh solve
                 fac = last_fac.refined_for(K)
             w_dot = None
+
+            def back_substitute(fac):
+                try:
+                    return ddm.back_substitute(fac, loads)
+                except SingularTangentError as e:
+                    raise fail(f"the sensitivity solve at t={t_new:.6g} failed: {e}") from None
+
             if fac is not None:
                 t1 = time.perf_counter()
-                w_dot, timing = ddm.solve(fac, to_device(w_trial), params, t_new, state_n, state_dot,
-                                          reuse_stiffness=steps >= 3)
+                w_dot, timing = back_substitute(fac)
                 if reused and fac.backward_error > REFINE_TOL:
                     w_dot, reused = None, False
             if w_dot is None:
@@ -378,15 +391,11 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
                     raise fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
                                f"sensitivities are undefined: {e}") from None
                 t1 = time.perf_counter()
-                w_dot, timing = ddm.solve(fac, to_device(w_trial), params, t_new, state_n, state_dot,
-                                          reuse_stiffness=steps >= 3)
+                w_dot, timing = back_substitute(fac)
             timing["factorization"] = t1 - t0
             timing["reused_factorization"] = reused
             timing["refinements"] = fac.refinements
-            if not np.all(np.isfinite(w_dot)):
-                raise fail(f"the sensitivities at t={t_new:.6g} are not finite (NaN/inf in the "
-                           "pseudo-load); a parameter expression may not be differentiable at "
-                           "these values")
+            # finite: the pseudo-loads were checked, every solve is (linsolve.Factor)
             inc.sens = {n: w_dot[k] for k, n in enumerate(names)}
             inc.timing = timing
         state_n, state_dot = model.update_state(inc, params, t_new, state_n, state_dot, names)
