@@ -396,10 +396,24 @@ def test_mkl_product_of_the_check_equals_scipys():
     A64 = A.copy()
     A64.indices, A64.indptr = A64.indices.astype(np.int64), A64.indptr.astype(np.int64)
     assert linsolve._MklProduct(linsolve._mkl().lib, A64)(x, x) is None
-    # a PARDISO factor uses it; an error planted in its first solve is found and
-    # refined away
+    # a PARDISO factor uses it for every solve, 1-D or 2-D, of K or K^T: SciPy's
+    # product is never called
     f = get_solver("pardiso").factorize(A)
     assert isinstance(f._residual_of, linsolve._MklProduct) and f._residual_of.ok
+
+    def no_scipy(*args):
+        raise AssertionError("SciPy's product used")
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(linsolve, "_residual", no_scipy)
+        for transpose in (False, True):
+            M = (A.T if transpose else A).toarray()
+            for b in (rng.normal(size=n), rng.normal(size=(n, 3)),
+                      np.asfortranarray(rng.normal(size=(n, 3)))):
+                x = f.solve(b, transpose=transpose)
+                assert np.max(np.abs(M @ x - b)) < 1e-12 * np.max(np.abs(b))
+    assert f._residual_of.ok
+    # an error planted in its first solve is found and refined away
     b = rng.normal(size=n)
     good, calls = f._solve, []
 

@@ -51,3 +51,17 @@ def test_uzawa_law_is_rejected_by_the_single_newton_driver(pair):
     _, pu, _, _ = pair
     with pytest.raises(sg.InputError, match="solve_uzawa"):
         sg.solve(pu)
+
+
+def test_non_differentiable_expression_is_a_convergence_error_with_the_partial_result(pair):
+    """Uzawa's DDM inside the outer loop: a modulus 100 + sqrt(k) at k = 0 (NaN
+    tangent) ends in a ConvergenceError naming it, carrying what was computed,
+    not in a linear solver's "singular tangent"."""
+    import jax.numpy as jnp
+
+    pu = pair[1]
+    mat = dataclasses.replace(pu.material, E=lambda p: 100.0 + jnp.sqrt(p["k"]))
+    bad = dataclasses.replace(pu, material=mat, params={**pu.params, "k": 0.0})
+    with pytest.raises(sg.ConvergenceError, match="sensitivities of 'k' are not finite") as e:
+        solve_uzawa(bad, sensitivities=["k"], tol=1e-8)
+    assert e.value.partial is not None

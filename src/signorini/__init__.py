@@ -7,8 +7,8 @@ place where JAX is configured); it has no other side effect.
 
 from . import _jax  # noqa: F401  (float64 before anything else touches JAX)
 from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty, equivalent_areas
-from .errors import (ConvergenceError, InputError, InvertedElementError, ResourceError,
-                     SignoriniError, SignoriniWarning, SingularTangentError, SolverError,
+from .errors import (ConvergenceError, InputError, InvertedElementError, NonDifferentiableError,
+                     ResourceError, SignoriniError, SignoriniWarning, SingularTangentError, SolverError,
                      UnknownParameterError)
 from .element import FBar, Standard
 from .kinematics import Axisymmetric, PlaneStrain
@@ -28,7 +28,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "AugmentedLagrangian", "Axisymmetric", "Circle", "FBar", "J2Plasticity", "PlaneStrain", "Standard", "Contact", "ConvergenceError", "Coulomb", "Fixed", "InputError",
-    "InvertedElementError", "LinearElastic", "Line", "Mesh", "NeoHooke", "NewtonOptions",
+    "InvertedElementError", "LinearElastic", "NonDifferentiableError", "Line", "Mesh", "NeoHooke", "NewtonOptions",
     "Penalty", "Pressure", "Problem", "ResourceError", "SignoriniError", "SignoriniWarning", "SingularTangentError", "Solution",
     "SolverError", "Traction", "UnknownParameterError", "equivalent_areas", "finite_difference",
     "graded_coordinates", "rectangle", "solve", "gradient", "Gradient",

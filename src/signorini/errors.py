@@ -48,6 +48,11 @@ class ConvergenceError(SolverError):
         self.partial = partial
 
 
+class NonDifferentiableError(InputError):
+    """A design sensitivity is not finite: some expression of the problem is not
+    differentiable at the parameter values (JAX's tangent through it is NaN)."""
+
+
 class ResourceError(InputError):
     """The problem is estimated to need more memory than the machine has."""
 

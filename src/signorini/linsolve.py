@@ -290,7 +290,9 @@ class _MklProduct:
         return self._h
 
     def __call__(self, x, b, transpose=False):
-        h = self._handle()
+        if x.ndim == 2 and x.shape[1] == 0:
+            return np.array(b, dtype=float, order="F")
+        h = self._handle() if self.ok else None  # a failed call is not tried again
         if h is None:
             return None
         _, mv, mm, _ = _sparse_blas(self._lib)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ._jax import to_device
 from ._memo import ObjectMemo
-from .errors import ConvergenceError, InputError, SingularTangentError
+from .errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
 from .linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
 from .model import Model
 from . import checks
@@ -193,8 +193,10 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
 
     Raises:
         ConvergenceError: Newton failed even after cutting the increment (or the
-            step-cutting floor/budget was reached); its ``partial`` attribute holds
-            the increments already converged.
+            step-cutting floor/budget was reached), the converged tangent is
+            singular, or the sensitivities are not finite (an expression not
+            differentiable at the parameter values); its ``partial`` attribute
+            holds the increments already converged.
         InputError: invalid parameters, names or meshes.
     """
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
@@ -355,7 +357,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         try:
             loads = None if ddm is None else ddm.pseudo_loads(
                 to_device(w_trial), params, t_new, state_n, state_dot, reuse_stiffness=steps >= 3)
-        except InputError as e:  # a non-differentiable expression: keep what converged
+        except NonDifferentiableError as e:  # keep what converged
             raise fail(str(e)) from None
         if keep_factors:
             try:
@@ -381,9 +383,15 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
 
             if fac is not None:
                 t1 = time.perf_counter()
-                w_dot, timing = back_substitute(fac)
-                if reused and fac.backward_error > REFINE_TOL:
-                    w_dot, reused = None, False
+                if reused:  # short of a fresh solve's accuracy, or failed: factorise
+                    try:
+                        w_dot, timing = ddm.back_substitute(fac, loads)
+                    except SingularTangentError:
+                        w_dot = None
+                    if w_dot is None or fac.backward_error > REFINE_TOL:
+                        w_dot, reused = None, False
+                else:
+                    w_dot, timing = back_substitute(fac)
             if w_dot is None:
                 try:
                     fac = lin.factorize(K)

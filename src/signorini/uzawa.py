@@ -23,7 +23,7 @@ import numpy as np
 
 from ._jax import jax, jnp
 from .contact.uzawa import UzawaPenalty
-from .errors import ConvergenceError, InputError
+from .errors import ConvergenceError, InputError, NonDifferentiableError
 from .linsolve import TangentSolver, get_solver
 from .newton import NewtonOptions, StepFailure, StepLog, newton
 from .params import as_jax, check_names, unit_tangents
@@ -136,7 +136,11 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
             if ddm is not None:
                 fac = lin.factorize(model.pattern.assemble(blocks))
                 sdot = (jnp.zeros((len(names), model.n_dof)), (lam_dot,))
-                w_dot, _ = ddm.solve(fac, wj, params, t, state, sdot)
+                try:
+                    w_dot, _ = ddm.solve(fac, wj, params, t, state, sdot)
+                except NonDifferentiableError as e:
+                    raise ConvergenceError(f"Uzawa at t={t:.6g}, outer iteration {k}: {e}",
+                                           partial=out) from None
                 out.linear_solves += 1 + len(names)
                 lam_dot = upd_jvp(wj, params, t, lam, jnp.asarray(w_dot),
                                   unit_tangents(params, names), lam_dot)
