@@ -264,8 +264,7 @@ class _MklProduct:
     _GENERAL = _MatrixDescr(20, 40, 50)  # general matrix (fill mode, diagonal unused)
 
     def __init__(self, lib, A: sp.csr_matrix):
-        self._lib, self._h = lib, None
-        self._A = A
+        self._lib, self._h, self._n = lib, None, A.shape[0]
         # the arrays themselves: the handle points into them, whatever becomes of A
         self._arrays = (A.indptr, A.indices, A.data)
         self.ok = (A.shape[0] == A.shape[1] and A.indptr.dtype == np.int32
@@ -274,14 +273,16 @@ class _MklProduct:
                    and A.indptr.flags.c_contiguous)
 
     def _handle(self):
-        if self._h is None and self.ok:
+        """MKL's handle of the matrix, made on first use; None once a call failed."""
+        if not self.ok:
+            return None
+        if self._h is None:
             try:
                 create = _sparse_blas(self._lib)[0]
             except AttributeError:  # an MKL without the inspector-executor API
                 self.ok = False
                 return None
-            (indptr, indices, data), h = self._arrays, ctypes.c_void_p()
-            n = self._A.shape[0]
+            (indptr, indices, data), h, n = self._arrays, ctypes.c_void_p(), self._n
             if create(ctypes.byref(h), 0, n, n, indptr.ctypes.data, indptr.ctypes.data + 4,
                       indices.ctypes.data, data.ctypes.data) != 0:
                 self.ok = False
@@ -292,12 +293,12 @@ class _MklProduct:
     def __call__(self, x, b, transpose=False):
         if x.ndim == 2 and x.shape[1] == 0:
             return np.array(b, dtype=float, order="F")
-        h = self._handle() if self.ok else None  # a failed call is not tried again
+        h = self._handle()
         if h is None:
             return None
         _, mv, mm, _ = _sparse_blas(self._lib)
         op = 11 if transpose else 10  # SPARSE_OPERATION_TRANSPOSE / _NON_TRANSPOSE
-        n = self._A.shape[0]
+        n = self._n
         if x.ndim == 1:
             x = np.ascontiguousarray(x, dtype=float)
             r = np.array(b, dtype=float, order="C")

@@ -375,23 +375,19 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
                 fac = last_fac.refined_for(K)
             w_dot = None
 
-            def back_substitute(fac):
+            def back_substitute(fac, or_none=False):
                 try:
                     return ddm.back_substitute(fac, loads)
                 except SingularTangentError as e:
+                    if or_none:  # a reused factor: factorise instead
+                        return None, None
                     raise fail(f"the sensitivity solve at t={t_new:.6g} failed: {e}") from None
 
             if fac is not None:
                 t1 = time.perf_counter()
-                if reused:  # short of a fresh solve's accuracy, or failed: factorise
-                    try:
-                        w_dot, timing = ddm.back_substitute(fac, loads)
-                    except SingularTangentError:
-                        w_dot = None
-                    if w_dot is None or fac.backward_error > REFINE_TOL:
-                        w_dot, reused = None, False
-                else:
-                    w_dot, timing = back_substitute(fac)
+                w_dot, timing = back_substitute(fac, or_none=reused)
+                if reused and (w_dot is None or fac.backward_error > REFINE_TOL):
+                    w_dot, reused = None, False  # failed or short of a fresh solve: factorise
             if w_dot is None:
                 try:
                     fac = lin.factorize(K)
