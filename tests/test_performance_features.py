@@ -135,6 +135,51 @@ def test_kept_symbolic_analysis_equals_fresh_factorisation(friction):
     assert f.backward_error <= linsolve.REFINE_TOL
 
 
+_THREADS_SCRIPT = r"""
+import numpy as np, scipy.sparse as sp
+from threadpoolctl import threadpool_limits
+from signorini.linsolve import Pardiso, mkl_threads
+n = 2000  # a 2-D Laplacian plus a shift: symmetric, with fill-in worth two threads
+T = sp.diags([-1.0, 2.2, -1.0], [-1, 0, 1], shape=(45, 45))
+K = (sp.kron(sp.eye(45), T) + sp.kron(T, sp.eye(45))).tocsr()
+K.sort_indices()
+b = np.cos(np.arange(K.shape[0]))
+s = Pardiso()
+with mkl_threads(2):
+    s.factorize(K, symmetric=True)
+for limit in ("mkl", "threadpoolctl"):
+    ctx = mkl_threads(1) if limit == "mkl" else threadpool_limits(1)
+    with ctx:
+        x = s.factorize(K * 1.5, symmetric=True).solve(b)
+    print(limit, float(np.abs(1.5 * (K @ x) - b).max()), s.analyses)
+    with mkl_threads(2):
+        s.factorize(K, symmetric=True)
+"""
+
+
+@needs_pardiso
+def test_factorisation_with_fewer_threads_than_the_analysis_had():
+    """MKL PARDISO's numeric factorisation crashes the process (segmentation fault)
+    when it runs with fewer OpenMP threads than the pattern's analysis had, as under a
+    user's ``threadpool_limits(1)`` around a later solve. The pattern is analysed
+    again instead. Run in a child process, so that a regression fails this test only."""
+    import subprocess
+    import sys
+    from signorini.linsolve import _mkl, mkl_max_threads, mkl_threads
+    with mkl_threads(2):
+        if mkl_max_threads(_mkl()) != 2:
+            pytest.skip("MKL does not run two threads here")
+    out = subprocess.run([sys.executable, "-c", _THREADS_SCRIPT], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, f"exit {out.returncode}: {out.stderr[-2000:]}"
+    lines = [ln.split() for ln in out.stdout.splitlines()]
+    assert [ln[0] for ln in lines] == ["mkl", "threadpoolctl"]
+    for _, err, _ in lines:
+        assert float(err) < 1e-12
+    # analysed with 2 threads, again with 1, again with 2, again with 1 (threadpoolctl), 2
+    assert [int(ln[2]) for ln in lines] == [2, 4]
+
+
 @needs_pardiso
 def test_one_analysis_for_a_whole_load_path():
     s = Pardiso()

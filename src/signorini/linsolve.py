@@ -511,6 +511,11 @@ def mkl_threads(n: int):
         lib.MKL_Set_Num_Threads(ctypes.c_int(old))
 
 
+def mkl_max_threads(f) -> int:
+    """The number of OpenMP threads MKL would use now (``f``: :func:`_mkl`'s entry point)."""
+    return int(f.lib.MKL_Get_Max_Threads())
+
+
 class _Handle:
     """One PARDISO instance: its internal pointer, parameters and analysed pattern."""
 
@@ -522,6 +527,7 @@ class _Handle:
         self.indptr = np.ascontiguousarray(indptr, dtype=np.int32)
         self.indices = np.ascontiguousarray(indices, dtype=np.int32)
         self.analysed = False
+        self.threads = 0  # MKL's thread count when the pattern was analysed
         self.generation = 0
         self.a = None  # values of the current factorisation (kept alive while it is used)
 
@@ -561,6 +567,7 @@ class _Handle:
         ip[17] = -1  # report the factor's non-zeros
         ip[20] = 1  # Bunch-Kaufman pivoting (symmetric indefinite)
         ip[34] = 1  # zero-based indices
+        self.threads = mkl_max_threads(self._f)
         self.call(11, a)
         self.analysed = True
 
@@ -681,6 +688,16 @@ class Pardiso(LinearSolver):
             return B.data.take(upper)
 
         h, fresh = self._handle(mtype, n, indptr, indices, analysis_values)
+        if h.threads != mkl_max_threads(self._f):
+            # PARDISO's numeric factorisation with fewer OpenMP threads than its analysis
+            # had crashes the process (a segmentation fault, MKL 2026.2 on x86-64: analysis
+            # with 2 threads, factorisation under threadpoolctl's or mkl_threads' limit
+            # of 1): analyse the pattern again with the threads there are now
+            log.debug("pardiso: MKL's thread count changed from %d to %d since the analysis; "
+                      "analysing the pattern again", h.threads, mkl_max_threads(self._f))
+            h.analyse(analysis_values())
+            self.analyses += 1
+            fresh = True
         fresh = fresh and not other  # an analysis of other values may still need K's own
         h.a = a
         h.call(22, a)
