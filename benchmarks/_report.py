@@ -22,3 +22,13 @@ def report(rows: list[dict], out, width: int = 12) -> None:
         wr.writeheader()
         wr.writerows(rows)
     print(f"\nwritten {out}")
+
+
+def solves_by_column(lin, n: int) -> str:
+    """PARDISO: "c/m": of the m solves of several columns (the DDM's) on the pattern
+    of n unknowns, c went column by column, the handle's timings having found the
+    block slower (``signorini.linsolve._Handle.solve``); "" for other solvers."""
+    for h in getattr(lin, "_handles", {}).values():
+        if h.n == n:
+            return f"{h.column_solves}/{h.multi_solves}"
+    return ""

@@ -12,7 +12,9 @@ each (so that the peak memory is that run's):
   divided by one bare numeric factorisation of the converged tangent, and the
   kernel + assembly share of an iteration;
 * the DDM per parameter (pseudo-load + back-substitution, the fastest of three
-  solves with sensitivities) divided by the solve (the fastest of three);
+  solves with sensitivities) divided by the solve (the fastest of three), and
+  with PARDISO how many of the DDM's solves of the finest mesh took the three
+  columns one by one rather than as a block (whichever was timed faster);
 * wall time of the solve (coarse levels included, compilation excluded),
   seconds per DOF, peak resident memory.
 
@@ -37,7 +39,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _report import report
+from _report import report, solves_by_column
 
 #: (refine, n_fine) of each size (block 20 a0, fine zone 1.5 a0)
 MESHES = {"5k": (0, 32), "56k": (2, 24), "225k": (3, 24), "1M": (4, 24)}
@@ -127,6 +129,7 @@ def one(size: str, solver: str) -> dict:
         "ddm_factorization_s": inc.timing["factorization"],
         "ddm_per_parameter_s": per_param, "ddm_per_parameter_over_solve": per_param / t_solve,
         "s_per_dof": t_solve / m.n_dof,
+        "ddm_solves_by_column": solves_by_column(lin, K.shape[0]),
         "peak_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 

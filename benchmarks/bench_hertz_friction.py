@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from _report import report
+from _report import report, solves_by_column
 
 #: (refine, n_fine) of each size (block 80 a0, fine zone 1.5 a0)
 MESHES = {"5k": (0, 24), "56k": (2, 18), "1M": (4, 20)}
@@ -100,6 +100,7 @@ def one(size: str, steps: int, solver: str, warm: bool) -> dict:
         "ddm_total_s": ddm, "ddm_per_parameter_s": per_param,
         "ddm_per_parameter_over_solve": per_param / (t_plain or t_sens),
         "s_per_dof": (t_plain or t_sens) / sol_s.model.n_dof,
+        "ddm_solves_by_column": solves_by_column(lin, sol_s.model.free.size),
         "peak_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
