@@ -394,6 +394,22 @@ def test_symmetry_figures_of_a_block_array_are_kept_only_while_it_lives():
     assert not blocks_symmetric([sym, frozen(np.array([[[0.0, 1.0], [0.0, 0.0]]]))])
 
 
+def test_backward_error_of_zero_rows_and_a_zero_right_hand_side():
+    """Rows where r_i = 0 over a zero denominator (b_i = 0 and x = 0, or an empty row)
+    count as exact (0/0 is passed over), for one column and several: a zero right-hand
+    side has backward error 0 and no refinement; a wrong x is still found in such a
+    system."""
+    A = sp.csr_matrix(np.array([[2.0, 1.0, 0.0], [1.0, 3.0, 0.0], [0.0, 0.0, 0.0]]))
+    f = linsolve.Factor(lambda v: np.zeros_like(v), A)
+    x = f.solve(np.zeros(3))
+    assert np.all(x == 0) and f.backward_error == 0.0 and f.refinements == 0
+    f.solve(np.zeros((3, 2)))
+    assert f.backward_error == 0.0 and f.refinements == 0
+    wrong = linsolve.Factor(lambda v: v * 0.5 if v.ndim == 1 else v, A)
+    wrong.solve(np.array([1.0, 0.0, 0.0]))
+    assert wrong.backward_error > 1e-3  # x = (0.5, 0, 0) leaves r_1 = -0.5 (refinement repeats it)
+
+
 @pytest.mark.parametrize("transpose", [False, True])
 def test_backward_error_bound_asks_for_the_exact_value_when_it_matters(transpose):
     """The check of a solve first divides by |K_ii| (a lower bound of max_j |K_ij|;

@@ -69,10 +69,15 @@ class Factor:
         self.K = K
         self.n = K.shape[0]
         self._norm = {}
+        self._scratch = None  # (2, n) work vectors of the backward error
         self.refinements = 0  # refinement back-substitutions done so far
         self.backward_error = 0.0  # of the last solve (worst column)
         self.relative_residual = 0.0  # max over columns of ||K x - b|| / ||b|| of the last solve
         self.nbytes: int | None = None  # memory of the factors, where the solver reports it
+
+    def row_scale(self) -> None:
+        """Compute now the row scale the check of a solve will use (it is kept)."""
+        self._row_scale(False, False)
 
     def _row_scale(self, transpose: bool, exact: bool) -> np.ndarray:
         """max_j |K_ij| of every row (of K^T: every column), or with ``exact=False``
@@ -124,18 +129,25 @@ class Factor:
             # short last axis are slow (3 columns at 225k DOFs: 7.2 -> 0.8 ms)
             return max((self._backward_error(r[:, j], x[:, j], b[:, j], transpose)
                         for j in range(x.shape[1])), default=0.0)
-        xmax = float(np.max(np.abs(x), initial=0.0))
-        absb = np.abs(b)
+        # two scratch vectors kept for every column and solve of this factor: fewer
+        # passes over memory and no fresh temporaries, which page-fault whenever the
+        # C library has given freed memory back (one column at 56k DOFs then cost
+        # 0.48 ms, 300 page faults, against 0.06 ms; in the DDM's solve, where they
+        # did not fault, three columns 0.40-0.46 -> 0.36 ms)
+        if self._scratch is None or self._scratch.shape[1] != r.shape[0]:
+            self._scratch = np.empty((2, r.shape[0]))
+        den, ratio = self._scratch
+        xmax = max(float(x.max(initial=0.0)), -float(x.min(initial=0.0)))
         eta = 0.0
         for exact in (False, True):
-            den = self._row_scale(transpose, exact) * xmax
-            den += absb
+            np.multiply(self._row_scale(transpose, exact), xmax, out=den)
+            den += np.abs(b, out=ratio)
+            np.abs(r, out=ratio)
             # den_i = 0 only where b_i = 0 and (row i of K is zero or x = 0): then r_i = 0,
-            # and r_i / tiny = 0
-            np.maximum(den, 1e-300, out=den)
-            ratio = np.abs(r)
-            ratio /= den
-            eta = float(np.max(ratio, initial=0.0))
+            # 0/0 = NaN, which fmax passes over
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio /= den
+            eta = float(np.fmax.reduce(ratio, initial=0.0))
             if eta <= REFINE_TOL:
                 break
         return eta
@@ -741,11 +753,6 @@ class Pardiso(LinearSolver):
             self.analyses += 1
             fresh = True
         fresh = fresh and not other  # an analysis of other values may still need K's own
-        h.a = a
-        h.call(22, a)
-        self.factorizations += 1
-        self.perturbed_pivots += int(h.iparm[13])
-        h.generation += 1
 
         def solver_of(generation):
             def solve(b, transpose=False):
@@ -773,8 +780,18 @@ class Pardiso(LinearSolver):
             h.generation += 1
             return solver_of(h.generation)
 
-        factor = Factor(solver_of(h.generation), A, None if fresh else refactor, transposable=True,
-                        residual=_MklProduct(self._f.lib, A))
+        # the factor of the numeric factorisation below (generation + 1)
+        factor = Factor(solver_of(h.generation + 1), A, None if fresh else refactor,
+                        transposable=True, residual=_MklProduct(self._f.lib, A))
+        # the check's row scale now, while K's values are in cache (the upper triangle
+        # was just taken from them): after the factorisation, which streams the factor
+        # through the cache, it cost 0.30-0.34 instead of 0.24 ms at 56k DOFs
+        factor.row_scale()
+        h.a = a
+        h.call(22, a)
+        self.factorizations += 1
+        self.perturbed_pivots += int(h.iparm[13])
+        h.generation += 1
         factor.owner = self  # keeps this solver, and so its PARDISO handles, alive
         factor.nbytes = 8 * abs(int(h.iparm[17]))  # iparm(18): non-zeros of the factors
         return factor
