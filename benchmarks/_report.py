@@ -24,11 +24,16 @@ def report(rows: list[dict], out, width: int = 12) -> None:
     print(f"\nwritten {out}")
 
 
-def solves_by_column(lin, n: int) -> str:
-    """PARDISO: "c/m": of the m solves of several columns (the DDM's) on the pattern
-    of n unknowns, c went column by column, the handle's timings having found the
-    block slower (``signorini.linsolve._Handle.solve``); "" for other solvers."""
+def solves_by_column(lin, n: int) -> dict:
+    """PARDISO, on the pattern of n unknowns: of the m solves of several columns (the
+    DDM's), how many went column by column ("c/m"), the handle's timings having found
+    the block slower (``signorini.linsolve._Handle.solve``), and the fastest recent
+    solve of one column and of a block of three (ms): they show the machine's state.
+    Empty for other solvers."""
     for h in getattr(lin, "_handles", {}).values():
         if h.n == n:
-            return f"{h.column_solves}/{h.multi_solves}"
-    return ""
+            block = h.blocks.get(3)
+            return {"ddm_solves_by_column": f"{h.column_solves}/{h.multi_solves}",
+                    "pardiso_one_column_ms": 1e3 * min(h.single) if h.single else "",
+                    "pardiso_three_columns_ms": 1e3 * min(block) if block else ""}
+    return {"ddm_solves_by_column": "", "pardiso_one_column_ms": "", "pardiso_three_columns_ms": ""}

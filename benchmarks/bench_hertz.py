@@ -14,7 +14,9 @@ each (so that the peak memory is that run's):
 * the DDM per parameter (pseudo-load + back-substitution, the fastest of three
   solves with sensitivities) divided by the solve (the fastest of three), and
   with PARDISO how many of the DDM's solves of the finest mesh took the three
-  columns one by one rather than as a block (whichever was timed faster);
+  columns one by one rather than as a block (whichever was timed faster), and
+  the fastest recent PARDISO solve of one column and of three (they show the
+  state of the machine, which decides the DDM's share);
 * wall time of the solve (coarse levels included, compilation excluded),
   seconds per DOF, peak resident memory.
 
@@ -129,7 +131,7 @@ def one(size: str, solver: str) -> dict:
         "ddm_factorization_s": inc.timing["factorization"],
         "ddm_per_parameter_s": per_param, "ddm_per_parameter_over_solve": per_param / t_solve,
         "s_per_dof": t_solve / m.n_dof,
-        "ddm_solves_by_column": solves_by_column(lin, K.shape[0]),
+        **solves_by_column(lin, K.shape[0]),
         "peak_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 

@@ -9,7 +9,10 @@ interpolated coarse increment (``solve(..., guide=...)``); their cost is
 reported as equivalent fine iterations (iterations x DOF ratio). Reports Newton iterations (total and per increment), wall time of the solve
 without and with DDM sensitivities for R, mu and E, the DDM part (factorisation
 of the converged tangent + pseudo-loads + back-substitutions), the share of
-kernels + assembly in the Newton iterations, and the peak resident memory.
+kernels + assembly in the Newton iterations, and the peak resident memory;
+with PARDISO, how many of the DDM's solves took the three columns one by one
+rather than as a block (whichever the solver timed faster) and the fastest
+recent solve of one column and of three.
 Prints a table and writes benchmarks/results/hertz_friction.csv.
 
     python benchmarks/bench_hertz_friction.py [--sizes 5k,56k,1M] [--steps 10]
@@ -100,7 +103,7 @@ def one(size: str, steps: int, solver: str, warm: bool) -> dict:
         "ddm_total_s": ddm, "ddm_per_parameter_s": per_param,
         "ddm_per_parameter_over_solve": per_param / (t_plain or t_sens),
         "s_per_dof": (t_plain or t_sens) / sol_s.model.n_dof,
-        "ddm_solves_by_column": solves_by_column(lin, sol_s.model.free.size),
+        **solves_by_column(lin, sol_s.model.free.size),
         "peak_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
