@@ -182,33 +182,43 @@ def test_factorisation_with_fewer_threads_than_the_analysis_had():
 @pytest.mark.parametrize("friction", [False, True])
 def test_several_columns_as_a_block_or_one_by_one_as_timed(friction):
     """Three right-hand sides go to PARDISO as one block, or column by column when the
-    handle's recent timings make the block the slower (times planted here): the
-    same checked solution either way, and a block is timed again every PROBE_EVERY
-    solves of several columns."""
+    handle's recent timings make that the faster (times planted here): the same
+    checked solution either way. Two block timings are needed first; every 4th
+    solve of several columns times the other way again."""
     pb = hertz_friction_problem(refine=0) if friction else hertz.hertz_problem(n_fine=8, size=8)
     K, _ = _tangent(pb, friction)
     B = np.random.default_rng(1).normal(size=(K.shape[0], 3))
     s = Pardiso()
     f = s.factorize(K, symmetric=not friction)
     h = next(iter(s._handles.values()))
+
+    def plant(block, cols=()):
+        h.blocks[3].clear()
+        h.blocks[3].extend(block)
+        h.by_columns[3].clear()
+        h.by_columns[3].extend(cols)
+
     x_block = f.solve(B)
-    assert (h.multi_solves, h.column_solves, len(h.blocks[3])) == (1, 0, 1)
-    f.solve(B)  # without the time of one column: a block
-    assert h.column_solves == 0
-    f.solve(B[:, 0])  # (as Newton's solves do before the DDM's)
-    h.blocks[3].clear()
-    h.blocks[3].append(10.0)  # a block "took" 10 s: slower than three single columns
-    x_cols = [f.solve(B) for _ in range(2)]
-    assert h.multi_solves == 4 and h.column_solves == 1  # the 4th solve timed a block again
-    assert len(h.blocks[3]) == 2 and h.blocks[3][-1] < 10.0
-    for x in x_cols:
-        assert _rel(x, x_block) < 1e-12
-        assert np.abs(K @ x - B).max() <= 1e-10 * np.abs(B).max() * (1 + abs(K).max())
-    for j in range(3):  # each column as one 1-D solve
-        assert _rel(f.solve(B[:, j]), x_block[:, j]) < 1e-12
-    h.blocks[3].append(1e-9)  # now the block is the faster: no more column solves
+    f.solve(B[:, 0])  # one column (as Newton's solves, before the DDM's)
+    plant([10.0])  # one block "took" 10 s: one timing is not enough
+    f.solve(B)
+    assert (h.multi_solves, h.column_solves, len(h.blocks[3])) == (2, 0, 2)
+    plant([10.0, 10.0])  # three single columns beat that
+    x_cols = f.solve(B)
+    assert h.column_solves == 1 and len(h.by_columns[3]) == 1
+    f.solve(B)  # the 4th: a block again
+    assert h.column_solves == 1 and len(h.blocks[3]) == 3
+    plant([10.0, 10.0], [20.0])  # columns timed slower than the block: a block
     f.solve(B)
     assert h.column_solves == 1
+    plant([10.0, 10.0], [20.0])
+    h.multi_solves = 7  # the 8th: columns again, as single solves would now beat the block
+    f.solve(B)
+    assert h.column_solves == 2
+    assert _rel(x_cols, x_block) < 1e-12
+    assert np.abs(K @ x_cols - B).max() <= 1e-10 * np.abs(B).max() * (1 + abs(K).max())
+    for j in range(3):  # each column as one 1-D solve
+        assert _rel(f.solve(B[:, j]), x_block[:, j]) < 1e-12
 
 
 @needs_pardiso

@@ -546,6 +546,7 @@ class _Handle:
         # seconds of recent back-substitutions: one column, and k columns at once
         self.single: deque = deque(maxlen=8)
         self.blocks: dict[int, deque] = {}
+        self.by_columns: dict[int, deque] = {}  # k columns one by one
         self.multi_solves = 0  # solves of several columns so far
         self.column_solves = 0  # of them, those done column by column
 
@@ -570,22 +571,28 @@ class _Handle:
             raise SingularTangentError(f"PARDISO phase {phase} failed: error {err.value} ({msg})")
         return x
 
-    #: solve k columns one by one when a block solve of k took this much longer than
-    #: k single ones (recent minima) ...
+    #: the time of k columns one by one, until measured, is taken as k single solves
+    #: times this margin
     COLUMNS_MARGIN = 1.05
-    #: ... and time a block solve again every this many solves of several columns
+    #: time the other way again every this many solves of several columns
     PROBE_EVERY = 4
 
     def solve(self, a, b: np.ndarray) -> np.ndarray:
         """Back-substitution (phase 33) of b (n,) or (n, k), columns contiguous.
 
         Several columns go to PARDISO as one block, or one by one when recent
-        solves of this handle timed the block slower than k single columns. Which
-        is faster depends on the machine's state, not on the factor: on the 2-core
-        test machine, at 56k DOFs, for the same factor, three columns took 7.6 ms
-        as a block and 4.3 ms each alone in some processes, 10.4 ms and 2.9 ms in
-        others (theory §10.2). Both give the same solution to round-off, and every
-        solve is checked (:class:`Factor`)."""
+        solves of this handle timed that faster: the fastest of the last block
+        solves (at least two, the first of a process is often slow) against the
+        fastest of the last column-by-column solves, or, before there is one, k
+        single solves (x :attr:`COLUMNS_MARGIN`). Every :attr:`PROBE_EVERY`-th
+        solve of several columns times the other way again: a block, or the
+        columns one by one if k single solves would now beat the block. Which is
+        faster depends on the machine's state, not on the factor: on the 2-core
+        test machine, at 56k
+        DOFs, for the same factor, three columns took 7.4-7.9 ms as a block and
+        4.0-4.5 ms each alone in some processes, 10.4-11.3 ms and 2.9-3.3 ms in
+        others (theory §10.2). Both give the same solution to round-off, and
+        every solve is checked (:class:`Factor`)."""
         k = 1 if b.ndim == 1 else b.shape[1]
         if k == 1:
             t0 = time.perf_counter()
@@ -594,13 +601,21 @@ class _Handle:
             return x
         self.multi_solves += 1
         block = self.blocks.setdefault(k, deque(maxlen=4))
-        if (block and self.single and self.multi_solves % self.PROBE_EVERY
-                and min(block) > self.COLUMNS_MARGIN * k * min(self.single)):
-            self.column_solves += 1
-            x = np.empty_like(b, order="F")
-            for j in range(k):
-                x[:, j] = self.solve(a, b[:, j])
-            return x
+        cols = self.by_columns.setdefault(k, deque(maxlen=4))
+        if len(block) >= 2 and (cols or self.single):
+            guess = self.COLUMNS_MARGIN * k * min(self.single) if self.single else np.inf
+            faster = (min(cols) if cols else guess) < min(block)
+            if self.multi_solves % self.PROBE_EVERY == 0:  # time the other way again,
+                # columns only where single solves say they may now be the faster
+                faster = not faster and guess < min(block)
+            if faster:
+                self.column_solves += 1
+                t0 = time.perf_counter()
+                x = np.empty_like(b, order="F")
+                for j in range(k):
+                    x[:, j] = self.call(33, a, b[:, j])
+                cols.append(time.perf_counter() - t0)
+                return x
         t0 = time.perf_counter()
         x = self.call(33, a, b)
         block.append(time.perf_counter() - t0)
