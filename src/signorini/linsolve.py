@@ -588,10 +588,9 @@ class _Handle:
         solve of several columns times the other way again: a block, or the
         columns one by one if k single solves would now beat the block. Which is
         faster depends on the machine's state, not on the factor: on the 2-core
-        test machine, at 56k
-        DOFs, for the same factor, three columns took 7.4-7.9 ms as a block and
-        4.0-4.5 ms each alone in some processes, 10.4-11.3 ms and 2.9-3.3 ms in
-        others (theory §10.2). Both give the same solution to round-off, and
+        test machine, at 56k DOFs, for the same factor, three columns took
+        7.4-7.9 ms as a block and 4.0-4.5 ms each alone in some processes,
+        10.4-11.3 ms and 2.9-3.3 ms in others (theory §10.2). Both give the same solution to round-off, and
         every solve is checked (:class:`Factor`)."""
         k = 1 if b.ndim == 1 else b.shape[1]
         if k == 1:
