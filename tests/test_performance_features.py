@@ -136,8 +136,11 @@ def test_kept_symbolic_analysis_equals_fresh_factorisation(friction):
 
 
 _THREADS_SCRIPT = r"""
+import contextlib, ctypes
 import numpy as np, scipy.sparse as sp
 from threadpoolctl import threadpool_limits
+from signorini import linsolve
+from signorini.errors import InputError, SingularTangentError
 from signorini.linsolve import Pardiso, mkl_threads
 n = 2000  # a 2-D Laplacian plus a shift: symmetric, with fill-in worth two threads
 T = sp.diags([-1.0, 2.2, -1.0], [-1, 0, 1], shape=(45, 45))
@@ -146,12 +149,39 @@ K.sort_indices()
 b = np.cos(np.arange(K.shape[0]))
 s = Pardiso()
 with mkl_threads(2):
+    old = s.factorize(K, symmetric=True)
+# a factor of the old analysis is refused after a new one, also when the numeric
+# factorisation that follows it fails (its solve would find no factor: a crash)
+call = linsolve._Handle.call
+def failing(self, phase, a=None, b=None):
+    if phase == 22:
+        raise SingularTangentError("planted")
+    return call(self, phase, a, b)
+linsolve._Handle.call = failing
+with mkl_threads(1):
+    try:
+        s.factorize(K * 2.0, symmetric=True)
+    except SingularTangentError:
+        pass
+linsolve._Handle.call = call
+try:
+    old.solve(b)
+    print("stale solved", s.analyses)
+except InputError:
+    print("stale refused", s.analyses)
+with mkl_threads(2):
     s.factorize(K, symmetric=True)
-for limit in ("mkl", "threadpoolctl"):
-    ctx = mkl_threads(1) if limit == "mkl" else threadpool_limits(1)
+domain = s._f.lib.MKL_Domain_Set_Num_Threads  # MKL_DOMAIN_PARDISO = 4
+for limit in ("pardiso-domain", "mkl", "threadpoolctl"):
+    if limit == "pardiso-domain":  # MKL_Get_Max_Threads stays 2
+        domain(ctypes.c_int(1), ctypes.c_int(4))
+        ctx = contextlib.nullcontext()
+    else:
+        ctx = mkl_threads(1) if limit == "mkl" else threadpool_limits(1)
     with ctx:
         x = s.factorize(K * 1.5, symmetric=True).solve(b)
     print(limit, float(np.abs(1.5 * (K @ x) - b).max()), s.analyses)
+    domain(ctypes.c_int(0), ctypes.c_int(4))  # 0: the domain follows the global count again
     with mkl_threads(2):
         s.factorize(K, symmetric=True)
 """
@@ -161,8 +191,9 @@ for limit in ("mkl", "threadpoolctl"):
 def test_factorisation_with_fewer_threads_than_the_analysis_had():
     """MKL PARDISO's numeric factorisation crashes the process (segmentation fault)
     when it runs with fewer OpenMP threads than the pattern's analysis had, as under a
-    user's ``threadpool_limits(1)`` around a later solve. The pattern is analysed
-    again instead. Run in a child process, so that a regression fails this test only."""
+    user's ``threadpool_limits(1)`` around a later solve, or a limit of PARDISO's
+    thread domain alone. The pattern is analysed again instead. Run in a child
+    process, so that a regression fails this test only."""
     from signorini.linsolve import _mkl, mkl_max_threads, mkl_threads
     with mkl_threads(2):
         if mkl_max_threads(_mkl()) != 2:
@@ -171,11 +202,12 @@ def test_factorisation_with_fewer_threads_than_the_analysis_had():
                          timeout=120)
     assert out.returncode == 0, f"exit {out.returncode}: {out.stderr[-2000:]}"
     lines = [ln.split() for ln in out.stdout.splitlines()]
-    assert [ln[0] for ln in lines] == ["mkl", "threadpoolctl"]
+    assert lines.pop(0) == ["stale", "refused", "2"]
+    assert [ln[0] for ln in lines] == ["pardiso-domain", "mkl", "threadpoolctl"]
     for _, err, _ in lines:
         assert float(err) < 1e-12
-    # analysed with 2 threads, again with 1, again with 2, again with 1 (threadpoolctl), 2
-    assert [int(ln[2]) for ln in lines] == [2, 4]
+    # analysed with 2 threads, again with 1 (each limit), and with 2 after each
+    assert [int(ln[2]) for ln in lines] == [4, 6, 8]
 
 
 @needs_pardiso
@@ -215,6 +247,21 @@ def test_several_columns_as_a_block_or_one_by_one_as_timed(friction):
     h.multi_solves = 7  # the 8th: columns again, as single solves would now beat the block
     f.solve(B)
     assert h.column_solves == 2
+    plant([10.0, 10.0], [1.0, 20.0])  # the fastest column timing counts
+    h.multi_solves = 9
+    f.solve(B)
+    assert h.column_solves == 3
+    h.single.clear()
+    h.single.append(1.0)  # one column "takes" 1 s: three take 3.15 s with the margin
+    plant([2.5, 2.5])
+    f.solve(B)  # a block of 2.5 s wins
+    assert h.column_solves == 3
+    plant([10.0, 10.0], [20.0])
+    h.single.clear()
+    h.single.append(10.0)
+    h.multi_solves = 11  # the 12th re-times the other way, but single solves say the
+    f.solve(B)  # columns cannot win: a block
+    assert h.column_solves == 3
     assert _rel(x_cols, x_block) < 1e-12
     assert np.abs(K @ x_cols - B).max() <= 1e-10 * np.abs(B).max() * (1 + abs(K).max())
     for j in range(3):  # each column as one 1-D solve
@@ -406,9 +453,8 @@ def test_symmetry_figures_of_a_block_array_are_kept_only_while_it_lives():
 
 def test_backward_error_of_zero_rows_and_a_zero_right_hand_side():
     """Rows where r_i = 0 over a zero denominator (b_i = 0 and x = 0, or an empty row)
-    count as exact (0/0 is passed over), for one column and several: a zero right-hand
-    side has backward error 0 and no refinement; a wrong x is still found in such a
-    system."""
+    count as exact, for one column and several: a zero right-hand side has backward
+    error 0 and no refinement; a wrong x is still found in such a system."""
     A = sp.csr_matrix(np.array([[2.0, 1.0, 0.0], [1.0, 3.0, 0.0], [0.0, 0.0, 0.0]]))
     f = linsolve.Factor(lambda v: np.zeros_like(v), A)
     x = f.solve(np.zeros(3))
@@ -418,6 +464,26 @@ def test_backward_error_of_zero_rows_and_a_zero_right_hand_side():
     wrong = linsolve.Factor(lambda v: v * 0.5 if v.ndim == 1 else v, A)
     wrong.solve(np.array([1.0, 0.0, 0.0]))
     assert wrong.backward_error > 1e-3  # x = (0.5, 0, 0) leaves r_1 = -0.5 (refinement repeats it)
+
+
+@pytest.mark.parametrize("columns", [None, 2])
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_refinement_step_that_is_not_finite_is_rejected(bad, columns):
+    """A first solve that is finite but inaccurate, then a refinement step of NaN or inf:
+    the step is rejected, the finite solution kept, and its backward error reported
+    as it is (not as 0, which a NaN passed over would give)."""
+    A = sp.csr_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 0.0], [0.0, 0.0, 2.0]]))
+    calls = []
+
+    def solve(v):
+        calls.append(1)
+        return 1.01 * np.linalg.solve(A.toarray(), v) if len(calls) == 1 else np.full_like(v, bad)
+
+    b = np.array([1.0, 2.0, 3.0]) if columns is None else np.ones((3, columns))
+    f = linsolve.Factor(solve, A)
+    x = f.solve(b)
+    assert np.all(np.isfinite(x)) and f.refinements == 1
+    assert 1e-3 < f.backward_error < 1e-2  # the 1 % error of the first solve
 
 
 @pytest.mark.parametrize("transpose", [False, True])

@@ -129,11 +129,11 @@ class Factor:
             # short last axis are slow (3 columns at 225k DOFs: 7.2 -> 0.8 ms)
             return max((self._backward_error(r[:, j], x[:, j], b[:, j], transpose)
                         for j in range(x.shape[1])), default=0.0)
-        # two scratch vectors kept for every column and solve of this factor: fewer
-        # passes over memory and no fresh temporaries, which page-fault whenever the
-        # C library has given freed memory back (one column at 56k DOFs then cost
-        # 0.48 ms, 300 page faults, against 0.06 ms; in the DDM's solve, where they
-        # did not fault, three columns 0.40-0.46 -> 0.36 ms)
+        # two scratch vectors kept for every column and solve of this factor: no fresh
+        # temporaries, which page-fault whenever the C library has given freed memory
+        # back (one column at 56k DOFs then cost 0.48 ms, 300 page faults, against
+        # 0.09 ms; in the DDM's solve they did not fault: three columns 0.4-0.5 ms
+        # either way)
         if self._scratch is None or self._scratch.shape[1] != r.shape[0]:
             self._scratch = np.empty((2, r.shape[0]))
         den, ratio = self._scratch
@@ -142,12 +142,13 @@ class Factor:
         for exact in (False, True):
             np.multiply(self._row_scale(transpose, exact), xmax, out=den)
             den += np.abs(b, out=ratio)
-            np.abs(r, out=ratio)
             # den_i = 0 only where b_i = 0 and (row i of K is zero or x = 0): then r_i = 0,
-            # 0/0 = NaN, which fmax passes over
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio /= den
-            eta = float(np.fmax.reduce(ratio, initial=0.0))
+            # and r_i / tiny = 0. A NaN (a non-finite refinement step, a NaN in K) stays
+            # NaN, so that the step is rejected and the error is not called small
+            np.maximum(den, 1e-300, out=den)
+            np.abs(r, out=ratio)
+            ratio /= den
+            eta = float(np.max(ratio, initial=0.0))
             if eta <= REFINE_TOL:
                 break
         return eta
@@ -525,8 +526,15 @@ def mkl_threads(n: int):
 
 
 def mkl_max_threads(f) -> int:
-    """The number of OpenMP threads MKL would use now (``f``: :func:`_mkl`'s entry point)."""
-    return int(f.lib.MKL_Get_Max_Threads())
+    """The number of OpenMP threads MKL's PARDISO would use now (``f``: :func:`_mkl`'s
+    entry point): its domain's count follows ``MKL_Set_Num_Threads``, threadpoolctl's
+    limits and a limit of the PARDISO domain alone (MKL_DOMAIN_PARDISO = 4), which
+    ``MKL_Get_Max_Threads`` does not see."""
+    lib = f.lib
+    try:
+        return int(lib.MKL_Domain_Get_Max_Threads(ctypes.c_int(4)))
+    except AttributeError:  # an MKL without domains
+        return int(lib.MKL_Get_Max_Threads())
 
 
 class _Handle:
@@ -636,6 +644,10 @@ class _Handle:
         ip[20] = 1  # Bunch-Kaufman pivoting (symmetric indefinite)
         ip[34] = 1  # zero-based indices
         self.threads = mkl_max_threads(self._f)
+        # a new analysis invalidates every factor of the old one, also where the
+        # numeric factorisation that follows fails (a solve of an analysed but
+        # unfactorised handle crashes MKL)
+        self.generation += 1
         self.call(11, a)
         self.analysed = True
 
