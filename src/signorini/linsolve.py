@@ -134,8 +134,8 @@ class Factor:
         # back (one column at 56k DOFs then cost 0.48 ms, 300 page faults, against
         # 0.09 ms; in the DDM's solve they did not fault: three columns 0.4-0.5 ms
         # either way)
-        if self._scratch is None or self._scratch.shape[1] != r.shape[0]:
-            self._scratch = np.empty((2, r.shape[0]))
+        if self._scratch is None:
+            self._scratch = np.empty((2, self.n))
         den, ratio = self._scratch
         xmax = max(float(x.max(initial=0.0)), -float(x.min(initial=0.0)))
         eta = 0.0
@@ -598,8 +598,8 @@ class _Handle:
         faster depends on the machine's state, not on the factor: on the 2-core
         test machine, at 56k DOFs, for the same factor, three columns took
         7.4-7.9 ms as a block and 4.0-4.5 ms each alone in some processes,
-        10.4-11.3 ms and 2.9-3.3 ms in others (theory §10.2). Both give the same solution to round-off, and
-        every solve is checked (:class:`Factor`)."""
+        10.4-11.3 ms and 2.9-3.3 ms in others (theory §10.2). Both give the same
+        solution to round-off, and every solve is checked (:class:`Factor`)."""
         k = 1 if b.ndim == 1 else b.shape[1]
         if k == 1:
             t0 = time.perf_counter()
@@ -768,13 +768,14 @@ class Pardiso(LinearSolver):
             return B.data.take(upper)
 
         h, fresh = self._handle(mtype, n, indptr, indices, analysis_values)
-        if h.threads != mkl_max_threads(self._f):
+        threads = mkl_max_threads(self._f)
+        if h.threads != threads:
             # PARDISO's numeric factorisation with fewer OpenMP threads than its analysis
             # had crashes the process (a segmentation fault, MKL 2026.2 on x86-64: analysis
             # with 2 threads, factorisation under threadpoolctl's or mkl_threads' limit
             # of 1): analyse the pattern again with the threads there are now
             log.debug("pardiso: MKL's thread count changed from %d to %d since the analysis; "
-                      "analysing the pattern again", h.threads, mkl_max_threads(self._f))
+                      "analysing the pattern again", h.threads, threads)
             h.analyse(analysis_values())
             self.analyses += 1
             fresh = True
