@@ -82,6 +82,85 @@ def test_tangent_is_the_theory_jacobian(case):
     assert np.allclose(K, E, rtol=0, atol=1e-14), (K, E)
 
 
+def test_disc_edge_tie_slips_whatever_the_rounding():
+    """A closed node exactly on the disc edge |lam^_T| = rho (every node that slipped
+    in the last increment starts the next one there) slips, also when round-off
+    moves |lam^_T| a few ulps either side; inside the disc by more than the tie
+    band it sticks; lam^_T = rho = 0 sticks (a body touching the die at the start
+    is held). The tangent of a tie is the slip block of the theory, the same when
+    compiled (flags and Jacobian in one program) or not."""
+    A, en, et, mu = 0.7, 3.0, 2.0, 0.4
+    meth, die = sg.Coulomb(), sg.Line(point=(0.0, 0.0), normal_vector=(0.0, 1.0))
+    geo = die.geometry({}, 0.0)
+    cp = {"mu": mu, "eps_n": en, "eps_t": et}
+    x = np.array([-0.5, -0.1])  # g_N = -0.1, s = 0.5
+    lam_n, s_n = -1.0, 0.5  # g_T = 0: lam^_T = lam_T
+    rho = -mu * (lam_n + en * -0.1)
+
+    def stick(lam_t, lam=None):
+        c = meth.cases(jnp.asarray(x), jnp.asarray(lam if lam is not None else [lam_n, lam_t]),
+                       geo, die, cp, (s_n, 1.0))
+        return bool(c[0]), bool(c[1])
+
+    for sign in (1.0, -1.0):
+        edge = sign * rho
+        near, lo, hi = [edge], edge, edge
+        for _ in range(8):  # eight ulps either side of the edge
+            lo, hi = np.nextafter(lo, -np.inf), np.nextafter(hi, np.inf)
+            near += [lo, hi]
+        assert len(set(near)) == 17
+        assert all(stick(v) == (True, False) for v in near), [(v - edge) / rho for v in near]
+        assert stick(edge * (1 - 1e-9)) == (True, True)  # inside by more than the band
+        assert stick(edge * (1 + 1e-9)) == (True, False)
+    # touching with zero pressure and no tangential traction: held (stick)
+    x0 = np.array([-0.5, 0.0])
+    c = meth.cases(jnp.asarray(x0), jnp.asarray([0.0, 0.0]), geo, die, cp, (0.5, 1.0))
+    assert bool(c[0]) and bool(c[1])
+
+    # the tangent of the tie: the slip block, compiled or not
+    def jac(v):
+        return meth.residual(v[:2], v[2:], A, geo, die, cp, (s_n, 1.0))
+    v = jnp.asarray(np.r_[x, lam_n, rho])
+    K, Kj = np.asarray(jax.jacfwd(jac)(v)), np.asarray(jax.jit(jax.jacfwd(jac))(v))
+    GN, GT = np.array([0.0, 1.0]), np.array([-1.0, 0.0])
+    E = np.zeros((4, 4))
+    E[:2, :2] = A * (en * np.outer(GN, GN) - mu * en * np.outer(GT, GN))
+    E[:2, 2] = A * (GN - mu * GT)
+    E[2, :2] = A * GN
+    E[3, :2] = -A * mu * en / et * GN
+    E[3, 2], E[3, 3] = -A * mu / et, -A / et
+    assert np.allclose(K, E, rtol=0, atol=1e-14) and np.allclose(Kj, E, rtol=0, atol=1e-14)
+
+
+def test_one_program_tangent_equals_separate_flags_at_increment_starts():
+    """Without a predictor every increment starts at the last converged state, where
+    the slipping nodes sit exactly on the disc edge. The Newton tangent (flags and
+    Jacobian compiled as one program) must take the same branches as flags computed
+    by their own program: a branch decided by rounding differed between the two
+    (stick 99.95 against 2e-15 in a tangential entry) and once gave a singular first
+    tangent."""
+    from signorini.params import as_jax
+    from signorini.solve import model_for
+    from signorini._jax import to_device
+
+    pb = hf.hertz_friction_problem(refine=0)
+    sol = sg.solve(pb, options=sg.NewtonOptions(rtol=1e-10, predictor="none"), steps=12)
+    m, p = model_for(pb), as_jax(pb.params)
+    Ke = m.element_stiffness(p)[0]
+    ties = 0
+    for prev, inc in zip(sol.increments[:-1], sol.increments[1:]):
+        w = to_device(prev.w)
+        R, blocks = m.local_tangents(w, p, inc.t, prev.state)
+        cases = m._cases(w, p, inc.t, prev.state)
+        R2, blocks2 = m._local(w, p, inc.t, prev.state, cases, Ke)
+        Kc, Kc2 = blocks[-1], np.asarray(blocks2[-1])
+        assert np.max(np.abs(Kc - Kc2)) <= 1e-12 * np.max(np.abs(Kc2))
+        assert np.max(np.abs(R - np.asarray(R2))) <= 1e-12 * np.max(np.abs(R))
+        closed, stick = np.asarray(cases[0][0]), np.asarray(cases[0][1])
+        ties += int(np.sum(closed & ~stick))  # slipping at the start: on the disc edge
+    assert ties > 0  # the path has tie nodes, which is what this test is about
+
+
 def test_symmetry_node_has_no_friction_multiplier(small):
     """x = 0: u_x prescribed, so g_T = 0 identically; lam_T = 0 there (THEORY 3)."""
     _, sol = small

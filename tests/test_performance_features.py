@@ -782,9 +782,13 @@ def test_linear_body_stiffness_once_equals_kernel():
 
 
 def test_predictor_changes_iterations_not_the_path():
+    # 30 increments: without a predictor the slipping nodes start every increment on
+    # the disc edge, and since they are sent to slip there (Coulomb's tie band) that
+    # start costs 53 iterations here against 35 with the predictor (12 increments:
+    # 29 against 27; 51 against 27 while the tie was decided by rounding)
     pb = hertz_friction_problem(refine=0)
     names = ["R", "mu", "E"]
-    o = dict(steps=12, sensitivities=names)
+    o = dict(steps=30, sensitivities=names)
     a = sg.solve(pb, options=sg.NewtonOptions(rtol=1e-10, predictor="none"), **o)
     b = sg.solve(pb, options=sg.NewtonOptions(rtol=1e-10, predictor="extrapolate"), **o)
     assert sum(b.newton_iterations) < 0.75 * sum(a.newton_iterations)

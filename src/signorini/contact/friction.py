@@ -27,10 +27,20 @@ tangent t' (it opposes the slip increment g_T).
 
 Case selection at the boundaries (closed at zero, as in
 :func:`~signorini.contact.methods._neg_part`): a node is closed when
-lam^_N <= 0; a closed node with mu > 0 sticks when |lam^_T| <= rho (so a body
-touching the die at the start is held tangentially from the first iteration);
-open nodes and mu = 0 always take the free (slip) branch, whose tangent for
-mu = 0 is exactly the frictionless one.
+lam^_N <= 0; a closed node with mu > 0 sticks when (1 + TIE) |lam^_T| <=
+(1 - TIE) rho, i.e. strictly inside the disc by a relative :data:`TIE`, and
+also when lam^_T = rho = 0 (so a body touching the die at the start is held
+tangentially from the first iteration); open nodes and mu = 0 always take the
+free (slip) branch, whose tangent for mu = 0 is exactly the frictionless one.
+
+Why a band: every node that slipped in the last increment starts the next one
+(from the converged state, without a predictor) exactly on the disc edge,
+|lam^_T| = rho to round-off (measured: relative margins below 7.3e-15 on the
+frictional Hertz). With the plain test |lam^_T| <= rho the branch of such a node
+was decided by the last bits of the arithmetic, which differ between two
+compiled programs of the same formula: the flags and the tangent computed in
+one program gave a singular first tangent (docs/theory.md §3.4). The band
+sends these ties to slip, their natural continuation, whatever the rounding.
 """
 
 from __future__ import annotations
@@ -43,6 +53,14 @@ from ..params import Spec, resolve
 
 #: Integer codes returned by :meth:`Coulomb.status`.
 OPEN, STICK, SLIP = 0, 1, 2
+
+#: Relative width of the stick/slip tie band: a closed node sticks only when
+#: (1 + TIE) |lam^_T| <= (1 - TIE) rho. Round-off of the disc-edge test is below
+#: 1e-14 (measured), so ties are decided the same way by every compiled program;
+#: a node inside the band is on the switch (it is reported as a switch point,
+#: :mod:`signorini.sensitivity.nonsmooth`, whose tolerance is far wider), where
+#: stick and slip give the same converged state to 1e-12.
+TIE = 1e-12
 STATUS_NAMES = ("open", "stick", "slip")
 
 
@@ -101,13 +119,14 @@ class Coulomb:
 
     def cases(self, x, lam, geo, obstacle, cp, hist):
         """Case flags (closed, stick, positive) of one node at (x, lam):
-        closed = lam^_N <= 0, stick = closed & mu > 0 & |lam^_T| <= rho,
+        closed = lam^_N <= 0, stick = closed & mu > 0 & (1 + TIE) |lam^_T| <=
+        (1 - TIE) rho (a node on the disc edge slips, see :data:`TIE`),
         positive = lam^_T >= 0 (the sign of the slip direction)."""
         s_n = self._hist(hist)[0]
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, s_n)
         closed = lhn <= 0.0
         rho = -cp["mu"] * jnp.where(closed, lhn, 0.0)
-        stick = closed & (cp["mu"] > 0.0) & (jnp.abs(lht) <= rho)
+        stick = closed & (cp["mu"] > 0.0) & ((1.0 + TIE) * jnp.abs(lht) <= (1.0 - TIE) * rho)
         return closed, stick, lht >= 0.0
 
     # -------------------------------------------------------- pseudo-potential
@@ -130,12 +149,11 @@ class Coulomb:
         caller's Jacobian of this function includes d rho / d(x, lam_N).
 
         The case flags come from ``hist`` when the model supplies them (computed
-        in a separate pass, :meth:`cases`), else from :meth:`cases` here. Every
-        slip node starts an increment exactly on the stick/slip boundary
-        |lam^_T| = rho; inside one compiled kernel XLA may re-evaluate that
-        comparison separately for the forces and for the multiplier rows, and
-        round-off can then pick different branches for them (a singular
-        tangent). Flags passed in as data cannot disagree."""
+        once per evaluation, :meth:`cases`), else from :meth:`cases` here. Flags
+        passed in as data cannot disagree between the force rows and the
+        multiplier rows of a node (a mix of stick and slip would leave the
+        lam_T column empty); the tie band of :meth:`cases` makes them the same
+        in every compiled program."""
         case = self._hist(hist)[2]
         if case is None:
             case = self.cases(x, lam, geo, obstacle, cp, hist)
