@@ -9,8 +9,11 @@ each (so that the peak memory is that run's):
   fine iterations (iterations x DOFs ratio);
 * one Newton iteration (kernels + assembly + factorisation + solve, averaged
   over the iterations of the same solve started from the undeformed state)
-  divided by one bare numeric factorisation of the converged tangent, and the
-  kernel + assembly share of an iteration;
+  divided by one bare numeric factorisation of the converged tangent, and by
+  that factorisation plus one checked back-substitution of one column (the
+  least an iteration with a direct solver costs: what lies above it is the
+  kernels, the assembly and the caches they find cold), and the kernel +
+  assembly share of an iteration;
 * the DDM per parameter (pseudo-load + back-substitution, the fastest of three
   solves with sensitivities) divided by the solve (the fastest of three), and
   with PARDISO how many of the DDM's solves of the finest mesh took the three
@@ -112,6 +115,11 @@ def one(size: str, solver: str) -> dict:
     sym = bool(sol_s.symmetric)
     lin.factorize(K, symmetric=sym)
     t_fac = best(lambda: lin.factorize(K, symmetric=sym), n=5)  # numeric only (analysis kept)
+    # one checked back-substitution of one column (what a Newton iteration solves): with
+    # the factorisation, the least a Newton iteration with a direct solver can cost
+    fac = lin.factorize(K, symmetric=sym)
+    rhs = -R[m.free]
+    t_bsub = best(lambda: fac.solve(rhs), n=5)
     t_fac_fresh = best(lambda: get_solver(solver).factorize(K, symmetric=sym), n=1)
     its = sol.increments[-1].newton.iterations
     t_iter = (plain.time_assembly - t_kernel + plain.time_factorization + plain.time_solve) / plain_its
@@ -125,7 +133,9 @@ def one(size: str, solver: str) -> dict:
         "iterations_without_coarse_start": plain_its,
         "kernels_s": t_kernel, "assembly_s": t_asm,
         "factorization_s": t_fac, "factorization_with_analysis_s": t_fac_fresh,
+        "back_substitution_s": t_bsub,
         "newton_iteration_s": t_iter, "iteration_over_factorization": t_iter / t_fac,
+        "iteration_over_factorization_and_solve": t_iter / (t_fac + t_bsub),
         "kernel_assembly_share": (t_kernel + t_asm) / t_iter,
         "solve_s": t_solve, "solve_with_3_sensitivities_s": t_solve_s,
         "ddm_factorization_s": inc.timing["factorization"],
