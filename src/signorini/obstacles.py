@@ -4,7 +4,9 @@ All functions are pure JAX functions of the point ``x`` (2,) and the resolved
 geometry ``geo = obstacle.geometry(params, t)``, so they can be differentiated
 with respect to the position and to the obstacle's own parameters (radius,
 centre, ...). Normal ``n'`` points from the obstacle into the body; ``g >= 0``
-means separated. See docs/theory.md §6.
+means separated. Every geometry carries ``geo["shift"]``, the rigid translation
+of the obstacle from its position at t = 0, which the linearised kinematics
+subtract from the displacement (:class:`Linearized`). See docs/theory.md §6.
 """
 
 from __future__ import annotations
@@ -37,8 +39,9 @@ class Circle:
         return (self.radius, *self.centre, *self.motion)
 
     def geometry(self, params, t):
-        c = _point(self.centre, params) + t * _point(self.motion, params)
-        return {"R": jnp.asarray(resolve(self.radius, params), dtype=float), "c": c}
+        shift = t * _point(self.motion, params)
+        return {"R": jnp.asarray(resolve(self.radius, params), dtype=float),
+                "c": _point(self.centre, params) + shift, "shift": shift}
 
     def check(self, params):
         r = float(resolve(self.radius, params))
@@ -81,7 +84,8 @@ class Line:
     def geometry(self, params, t):
         n = _point(self.normal_vector, params)
         n = n / jnp.sqrt(n @ n)
-        return {"x0": _point(self.point, params) + t * _point(self.motion, params), "n": n}
+        shift = t * _point(self.motion, params)
+        return {"x0": _point(self.point, params) + shift, "n": n, "shift": shift}
 
     def check(self, params):
         n = _point(self.normal_vector, params)
@@ -110,12 +114,19 @@ class Linearized:
     """An obstacle seen with geometrically linear contact kinematics.
 
     This is the classical Signorini linearisation of small-strain analyses
-    (the assumption of the analytical Hertz solution): the displacement of a
-    contact node enters the gap only through its component along the body's
+    (the assumption of the analytical Hertz solution), written in the frame of
+    the obstacle: with ``c = geo["shift"]`` the obstacle's rigid translation
+    since t = 0, the node's displacement *relative to the obstacle*,
+    ``w = u - c``, enters the gap only through its component along the body's
     reference outward normal N, and the slip coordinate only through its
-    component along the body's tangent T = (-N2, N1)::
+    component along the body's tangent T = (-N2, N1). The expansion point is
+    the reference position carried along with the obstacle, Y = X + c::
 
-        g(x) = g(X) + grad g(X) . N (N . u),   s(x) = s(X) + grad s(X) . T (T . u),   u = x - X.
+        g(x) = g(Y) + grad g(Y) . N (N . w),   s(x) = s(Y) + grad s(Y) . T (T . w),
+        w = x - Y = u - c.
+
+    A rigid translation of body and obstacle together therefore changes
+    neither (docs/theory.md §6.3).
     """
 
     def __init__(self, base, X, N):
@@ -125,7 +136,8 @@ class Linearized:
         self.T = jnp.array([-N[1], N[0]])
 
     def _lin(self, f, x, geo, d):
-        val, dv = jax.jvp(lambda y: f(y, geo), (self.X,), (d * (d @ (x - self.X)),))
+        Y = self.X + geo["shift"]
+        val, dv = jax.jvp(lambda y: f(y, geo), (Y,), (d * (d @ (x - Y)),))
         return val + dv
 
     def gap(self, x, geo):
@@ -135,7 +147,7 @@ class Linearized:
         return self._lin(self.base.coordinate, x, geo, self.T)
 
     def normal(self, x, geo):
-        return self.base.normal(self.X, geo)
+        return self.base.normal(self.X + geo["shift"], geo)
 
     def project(self, x, geo):
-        return self.base.project(self.X, geo)
+        return self.base.project(self.X + geo["shift"], geo)

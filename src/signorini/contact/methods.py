@@ -117,7 +117,8 @@ class Contact:
         edges: name of the mesh edge set whose nodes are contact nodes.
         method: :class:`AugmentedLagrangian` (default) or :class:`Penalty`.
         kinematics: ``"finite"`` (gap at the current position X + u),
-            ``"linear"`` (gap linearised about X: geometrically linear analysis)
+            ``"linear"`` (gap and slip linearised about X in the frame of the
+            moving obstacle: geometrically linear analysis, docs/theory.md §6.3)
             or ``"auto"``: linear with a small-strain material, finite otherwise.
     """
 
