@@ -193,7 +193,7 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
     import gc
 
     import signorini as sg
-    from signorini.gradient import gradient
+    from signorini.design.gradient import gradient
 
     base, response, kw = setup(name, small)
     if count == "nodes":
@@ -255,7 +255,7 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
 
 def measure_memory(name: str, config: str, small: bool, solver: str, out: str) -> dict:
     """One process, one run: the all-nodes adjoint in one memory configuration."""
-    from signorini.gradient import gradient
+    from signorini.design.gradient import gradient
 
     pb, response, kw = setup(name, small)
     before, other = rss_mb(), OtherCpu()

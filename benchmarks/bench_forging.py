@@ -120,7 +120,7 @@ def measure(mesh: str, solver: str, steps: int, repeat: int, jit: str = "first")
     is then reported as JIT + solve after JIT.
     """
     from signorini.problems import forging as fg
-    from signorini.solve import model_for
+    from signorini.algorithms.stepping import model_for
 
     pb = fg.forging_problem(mesh=MESHES[mesh])
     model = model_for(pb)
@@ -202,7 +202,7 @@ def profile(steps: int, solver: str, out: Path) -> None:
 
     import signorini as sg
     from signorini.problems import forging as fg
-    from signorini.solve import ddm_for, model_for
+    from signorini.algorithms.stepping import ddm_for, model_for
 
     pb = fg.forging_problem(mesh=MESHES["10x20"])
     names = list(fg.SHAPE)

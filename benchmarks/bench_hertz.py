@@ -65,10 +65,10 @@ def one(size: str, solver: str) -> dict:
     """Measure one (size, solver) in this process."""
     import signorini as sg
     from signorini.linsolve import get_solver
-    from signorini.multilevel import prolong, solve_coarse_to_fine
+    from signorini.algorithms.coarse_to_fine import prolong, solve_coarse_to_fine
     from signorini.params import as_jax
     from signorini.problems import hertz
-    from signorini.solve import model_for
+    from signorini.algorithms.stepping import model_for
 
     refine, n_fine = MESHES[size]
     opts = sg.NewtonOptions()  # rtol 1e-10 (the default, as before): 1e-11 is below the

@@ -21,7 +21,7 @@ from _report import report
 import signorini as sg
 from signorini.contact.uzawa import UzawaPenalty
 from signorini.problems import hertz
-from signorini.uzawa import solve_uzawa
+from signorini.algorithms.uzawa import solve_uzawa
 
 OPT = sg.NewtonOptions(rtol=1e-11)
 

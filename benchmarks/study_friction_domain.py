@@ -58,12 +58,12 @@ import numpy as np
 from _report import report
 
 import signorini as sg
-from signorini import checks
+from signorini.model import checks
 from signorini.errors import ConvergenceError
-from signorini.newton import NewtonOptions
+from signorini.algorithms.newton import NewtonOptions
 from signorini.problems import hertz
-from signorini.problems.hertz_friction import (DEFAULTS, hertz_friction_problem, load_increments,
-                                               stick_zone)
+from signorini.problems.hertz_friction import (
+    DEFAULTS, hertz_friction_problem, load_increments, stick_zone)
 
 RESULTS = Path(__file__).parent / "results"
 OPTIONS = NewtonOptions(rtol=1e-10)

@@ -30,8 +30,8 @@ import numpy as np
 
 import signorini as sg
 from signorini.contact import Contact
-from signorini.loads import Fixed
-from signorini.obstacles import Circle
+from signorini.fem.loads import Fixed
+from signorini.contact.obstacles import Circle
 from signorini.problems import hertz, hertz_friction
 
 OUT = Path(__file__).resolve().parent / "results" / "moving_obstacle.csv"

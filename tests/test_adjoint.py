@@ -11,16 +11,17 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import io, runner
+from signorini.post import files as io
+from signorini.app import runner
 from signorini._jax import jnp
 from signorini.contact import AugmentedLagrangian, Contact
 from signorini.errors import InputError
-from signorini.gradient import gradient
-from signorini.loads import Fixed
+from signorini.design.gradient import gradient
+from signorini.fem.loads import Fixed
 from signorini.materials import LinearElastic
-from signorini.mesh import rectangle
-from signorini.obstacles import Circle
-from signorini.problem import Problem
+from signorini.fem.mesh import rectangle
+from signorini.contact.obstacles import Circle
+from signorini.model.problem import Problem
 from signorini.problems import forging, hertz, hertz_friction
 
 TIGHT = sg.NewtonOptions(rtol=1e-11)
@@ -220,7 +221,7 @@ def test_transposed_solves_match_superlu():
 
 def test_optimisation_objective_with_adjoint_gradient():
     """The optimisation interface takes either mode: same value and gradient."""
-    from signorini.optimize import Objective
+    from signorini.design.optimize import Objective
 
     pb = forging.forging_problem(mesh=(2, 4))
     names = ["phi0", "phi2", "mu"]
@@ -233,7 +234,7 @@ def test_optimisation_objective_with_adjoint_gradient():
 
 
 def test_cli_adjoint_next_to_ddm(tmp_path):
-    from signorini.cli import main
+    from signorini.app.cli import main
 
     main(["forging", "--out", str(tmp_path), "--mesh", "2x4", "--steps", "4", "--no-fd", "--adjoint"])
     s = json.loads((tmp_path / "summary.json").read_text())
@@ -270,7 +271,7 @@ def test_solution_argument_must_match_and_memory_counts_factors():
 
 def test_cli_optimise_forging_with_adjoint_gradient(tmp_path):
     """optimise-forging --gradient adjoint takes the same path as the DDM."""
-    from signorini.cli import main
+    from signorini.app.cli import main
 
     F = {}
     for g in ("adjoint", "ddm"):

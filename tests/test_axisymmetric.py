@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import element
+from signorini.fem import element
 from signorini._jax import jax, jnp
-from signorini.kinematics import AXISYMMETRIC, PLANE_STRAIN, Axisymmetric
+from signorini.fem.kinematics import AXISYMMETRIC, PLANE_STRAIN, Axisymmetric
 from signorini.params import as_jax
 
 E, NU = 200.0, 0.3

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import resources
-from signorini.cli import main
-from signorini.errors import (ConvergenceError, InputError, ResourceError, SignoriniError,
-                              SignoriniWarning)
+from signorini.app import resources
+from signorini.app.cli import main
+from signorini.errors import (
+    ConvergenceError, InputError, ResourceError, SignoriniError, SignoriniWarning)
 from signorini.problems import hertz, hertz_friction as hf
 
 

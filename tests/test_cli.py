@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 
-from signorini.cli import main
+from signorini.app.cli import main
 from signorini.problems import hertz
 
 

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from signorini.cli import main
+from signorini.app.cli import main
 
 
 def read(path):

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import element
+from signorini.fem import element
 from signorini._jax import jax, jnp
-from signorini.model import Model
+from signorini.model.kernels import Model
 from signorini.params import as_jax
 from signorini.problems.hertz import hertz_problem
-from signorini.solve import model_for
+from signorini.algorithms.stepping import model_for
 
 PARAMS = {"E": 100.0, "nu": 0.3}
 
@@ -308,7 +308,7 @@ def test_fbar_tangent_equals_forward_jacobian_of_the_element(kinematics, materia
     the map): it equals the forward-mode Jacobian of the element residual, on
     elastic and plastic J2 states and for a neo-Hookean solid, and the internal
     forces and history equal those of the residual kernel."""
-    from signorini.kinematics import AXISYMMETRIC, PLANE_STRAIN
+    from signorini.fem.kinematics import AXISYMMETRIC, PLANE_STRAIN
     from signorini.materials import J2Plasticity
 
     form = element.FBAR if formulation == "fbar" else _OtherFBar()
@@ -351,7 +351,7 @@ def test_standard_internal_forces_equal_the_vjp_of_the_gradients(kinematics, mat
     """The standard element's internal forces, summed as w B^T P by hand (hoop row
     included), equal their definition r = (dH/du_e)^T (w P) taken by JAX's VJP of
     the Gauss-point gradients, and the r of the residual-and-tangent kernel."""
-    from signorini.kinematics import AXISYMMETRIC, PLANE_STRAIN
+    from signorini.fem.kinematics import AXISYMMETRIC, PLANE_STRAIN
     from signorini.materials import J2Plasticity
 
     kin = PLANE_STRAIN if kinematics == "plane" else AXISYMMETRIC

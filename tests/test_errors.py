@@ -10,8 +10,8 @@ import pytest
 
 import signorini as sg
 from signorini._jax import jnp
-from signorini.errors import (ConvergenceError, InputError, InvertedElementError, SignoriniError,
-                              UnknownParameterError)
+from signorini.errors import (
+    ConvergenceError, InputError, InvertedElementError, SignoriniError, UnknownParameterError)
 from signorini.problems.hertz import hertz_problem
 
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import element
+from signorini.fem import element
 from signorini._jax import jax, jnp
-from signorini.cli import main
+from signorini.app.cli import main
 from signorini.problems import forging as fg
 
 pytestmark = pytest.mark.filterwarnings("ignore:contact .* the contact zone holds only")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini.cli import main
+from signorini.app.cli import main
 from signorini.problems import hertz, hertz_friction as hf
 
 TIGHT = sg.NewtonOptions(rtol=1e-11)
@@ -140,7 +140,7 @@ def test_one_program_tangent_equals_separate_flags_at_increment_starts():
     (stick 99.95 against 2e-15 in a tangential entry) and once gave a singular first
     tangent."""
     from signorini.params import as_jax
-    from signorini.solve import model_for
+    from signorini.algorithms.stepping import model_for
     from signorini._jax import to_device
 
     pb = hf.hertz_friction_problem(refine=0)

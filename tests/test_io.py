@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini.io import read_mesh
+from signorini.fem.meshfile import read_mesh
 
 
 def _write_gmsh(path, flip_cells=False, interior_line=False):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import optimize as opt
+from signorini.design import optimize as opt
 from signorini.problems import forging as fg
 from signorini.problems import forging_opt as fo
 
@@ -230,7 +230,7 @@ def test_optimise_forging_command(tmp_path, capsys):
     """`signorini optimise-forging` on a tiny mesh: the table is printed and F falls."""
     import json
 
-    from signorini.cli import main
+    from signorini.app.cli import main
 
     out = tmp_path / "opt"
     assert main(["optimise-forging", "--out", str(out), "--mu", "0.1", "--mesh", "3x6",

@@ -16,11 +16,11 @@ import scipy.sparse as sp
 import signorini as sg
 from signorini import linsolve
 from signorini.linsolve import Pardiso, SuperLU, TangentSolver, get_solver
-from signorini.multilevel import prolong, solve_coarse_to_fine
+from signorini.algorithms.coarse_to_fine import prolong, solve_coarse_to_fine
 from signorini.params import as_jax
 from signorini.problems import hertz
 from signorini.problems.hertz_friction import hertz_friction_problem
-from signorini.solve import model_for
+from signorini.algorithms.stepping import model_for
 
 HAS_PARDISO = "pardiso" in linsolve.available()
 needs_pardiso = pytest.mark.skipif(not HAS_PARDISO, reason="pypardiso (MKL) is not installed")
@@ -45,7 +45,7 @@ def test_missing_named_solver_says_how_to_install(monkeypatch):
         raise sg.InputError("solver 'pardiso' is not installed: `python3 -m pip install pypardiso` "
                             "(x86-64 only; it brings Intel MKL) (import failed: simulated)")
 
-    from signorini.solve import _MODELS
+    from signorini.algorithms.stepping import _MODELS
 
     monkeypatch.setattr(linsolve, "_MKL", None)
     monkeypatch.setattr(linsolve, "_load_mkl", no_mkl)
@@ -282,7 +282,7 @@ def test_a_named_solver_keeps_its_analysis_for_every_solve_of_the_model():
     instance is in use gets a fresh one. The results are those of a fresh solver."""
     import contextlib
 
-    from signorini.solve import kept_solver
+    from signorini.algorithms.stepping import kept_solver
 
     pb = hertz.hertz_problem(n_fine=8)
     a = sg.solve(pb, sensitivities=["E"])
@@ -627,7 +627,7 @@ def test_pseudo_load_of_the_modulus_is_the_internal_force_over_it(monkeypatch):
 
     from signorini.materials import LinearElastic, NeoHooke
     from signorini.sensitivity import ddm as ddm_mod
-    from signorini.solve import _MODELS
+    from signorini.algorithms.stepping import _MODELS
 
     o = TIGHT
     for pb, steps, names in ((hertz.hertz_problem(n_fine=8, size=8), 1, ["R", "E", "P"]),
@@ -710,7 +710,7 @@ def test_element_kernels_in_chunks_equal_one_vmap():
     from signorini.problems import forging
 
     names = ["phi1", "E"]
-    from signorini.solve import _MODELS
+    from signorini.algorithms.stepping import _MODELS
 
     ref_pb, pb = forging.forging_problem(), forging.forging_problem()
     kw = dict(options=forging.options(), steps=4, sensitivities=names)
@@ -748,7 +748,7 @@ def test_element_kernels_in_chunks_equal_one_vmap():
 def test_prolongation_is_built_once_per_pair_of_meshes():
     """A coarse-to-fine solve rebuilt the interpolation every time (75 of 230 ms at
     56k DOFs): it is now kept by the fine model, per coarse model."""
-    from signorini.multilevel import Prolongation
+    from signorini.algorithms.coarse_to_fine import Prolongation
 
     cm = model_for(hertz_friction_problem(refine=0, n_fine=12))
     cm2 = model_for(hertz_friction_problem(refine=0, n_fine=16))
@@ -888,7 +888,7 @@ def test_guide_covers_only_its_own_increments():
     predictor takes over; a guide of the same mesh at other parameters
     (finite-difference re-solves) is interpolated by the identity. Only the
     start changes."""
-    from signorini.multilevel import Prolongation
+    from signorini.algorithms.coarse_to_fine import Prolongation
 
     pb = hertz_friction_problem(refine=0)
     o = sg.NewtonOptions(rtol=1e-10)
@@ -914,7 +914,7 @@ def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
     """A coarse level whose Newton fails is recorded as failed; the increments it
     converged still guide the next mesh, the rest use the predictor, and the
     fine path is the one from rest."""
-    solve_module = sys.modules["signorini.solve"]  # the module (the package exports the function)
+    solve_module = sys.modules["signorini.algorithms.stepping"]
     real = solve_module.solve
     coarse, fine = hertz_friction_problem(refine=0, n_fine=12), hertz_friction_problem(refine=0)
 
@@ -937,7 +937,7 @@ def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
 def test_a_coarse_level_that_converges_nothing_keeps_the_guide_before(monkeypatch):
     """Three levels, the middle one failing in its first increment: the finest is
     guided by the coarsest (before: by nothing)."""
-    solve_module = sys.modules["signorini.solve"]
+    solve_module = sys.modules["signorini.algorithms.stepping"]
     real = solve_module.solve
     pbs = [hertz_friction_problem(refine=0, n_fine=8), hertz_friction_problem(refine=0, n_fine=12),
            hertz_friction_problem(refine=0)]
@@ -959,8 +959,8 @@ def test_a_coarse_level_that_converges_nothing_keeps_the_guide_before(monkeypatc
 def test_prolongation_reproduces_affine_fields():
     """Piecewise linear interpolation is exact for an affine displacement field;
     nodes outside the coarse mesh take the nearest coarse node's value."""
-    from signorini.multilevel import Prolongation
-    from signorini.solve import model_for
+    from signorini.algorithms.coarse_to_fine import Prolongation
+    from signorini.algorithms.stepping import model_for
 
     cm = model_for(hertz_friction_problem(refine=0, n_fine=12))
     fm = model_for(hertz_friction_problem(refine=1))
@@ -975,7 +975,7 @@ def test_prolongation_reproduces_affine_fields():
 def test_memory_estimate_of_pardiso_matches_measurements():
     """benchmarks/results: 1.77 GB at 225k DOFs (symmetric), 6.8 GB for the frictional
     Hertz at 1.06M (LU); within 20 %."""
-    from signorini import resources
+    from signorini.app import resources
 
     est = lambda n: resources.estimated_peak_memory(n, "pardiso") / resources.GB  # noqa: E731
     assert abs(est(224_848) / 1.77 - 1) < 0.2 and abs(est(1_057_264) / 6.8 - 1) < 0.2
@@ -992,9 +992,9 @@ def test_a_problem_built_again_reuses_its_compiled_model():
     name) gets its own."""
     import dataclasses
 
-    from signorini.solve import _MODELS
+    from signorini.algorithms.stepping import _MODELS
     from signorini.errors import InputError
-    from signorini.loads import Pressure
+    from signorini.fem.loads import Pressure
 
     a, b = hertz.hertz_problem({"R": 1.0}), hertz.hertz_problem({"R": 1.2})
     m = model_for(a)
@@ -1035,7 +1035,7 @@ def test_element_stiffness_kept_while_the_element_parameters_are():
     """A linear body's Ke and the DDM's dKe/dphi are keyed by the material and
     shape values only: a solve for another friction coefficient or radius
     reuses them and gives a fresh model's numbers; another E recomputes them."""
-    from signorini.solve import _MODELS, ddm_for
+    from signorini.algorithms.stepping import _MODELS, ddm_for
 
     # SuperLU: a factorisation of its own for every tangent, so that the two solves
     # differ only in what this test is about. PARDISO keeps the analysis of the

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import problemfile as pf
+from signorini.app import problemfile as pf
 
 BLOCK = """\
 title = "block on a cylinder"

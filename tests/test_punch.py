@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini import element
+from signorini.fem import element
 from signorini.materials import J2Plasticity
 
 B, L, E, SY = 1.0, 12.0, 1.0e6, 100.0

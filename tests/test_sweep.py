@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from signorini.sweep import flatten, grid, point_args, read_csv, run_sweep
+from signorini.app.sweep import flatten, grid, point_args, read_csv, run_sweep
 
 distributed = pytest.importorskip("distributed")
 
@@ -62,7 +62,7 @@ def test_hertz_sweep_two_workers_equals_sequential(tmp_path):
 def test_sweep_command_sequential(tmp_path, capsys):
     """`signorini sweep hertz --set R=1,1.2 --sequential -- --no-fd --block 10`: one row
     per point, the mesh never follows R (same DOFs), R recorded as swept."""
-    from signorini.cli import main
+    from signorini.app.cli import main
 
     out = tmp_path / "sw"
     assert main(["sweep", "hertz", "--out", str(out), "--set", "R=1,1.2", "--sequential", "-q",

@@ -8,7 +8,7 @@ import pytest
 import signorini as sg
 from signorini.contact.uzawa import UzawaPenalty
 from signorini.problems import hertz
-from signorini.uzawa import solve_uzawa
+from signorini.algorithms.uzawa import solve_uzawa
 
 TIGHT = sg.NewtonOptions(rtol=1e-11)
 

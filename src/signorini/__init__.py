@@ -7,24 +7,31 @@ place where JAX is configured); it has no other side effect.
 
 from . import _jax  # noqa: F401  (float64 before anything else touches JAX)
 from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty, equivalent_areas
-from .errors import (ConvergenceError, InputError, InvertedElementError, NonDifferentiableError,
-                     ResourceError, SignoriniError, SignoriniWarning, SingularTangentError, SolverError,
-                     UnknownParameterError)
-from .element import FBar, Standard
-from .kinematics import Axisymmetric, PlaneStrain
-from .loads import Fixed, Pressure, Traction
+from .errors import (
+    ConvergenceError, InputError, InvertedElementError, NonDifferentiableError, ResourceError,
+    SignoriniError, SignoriniWarning, SingularTangentError, SolverError, UnknownParameterError)
+from .fem.element import FBar, Standard
+from .fem.kinematics import Axisymmetric, PlaneStrain
+from .fem.loads import Fixed, Pressure, Traction
 from .materials import J2Plasticity, LinearElastic, NeoHooke
-from .mesh import Mesh, graded_coordinates, rectangle
-from .newton import NewtonOptions
-from .obstacles import Circle, Line
-from .problem import Problem
-from .sensitivity import finite_difference
-from .solution import Solution
-from .solve import solve
-from .gradient import Gradient, gradient
-from . import io  # noqa: E402  (read_mesh, write_vtu, ...)
+from .fem.mesh import Mesh, graded_coordinates, rectangle
+from .algorithms.newton import NewtonOptions
+from .contact.obstacles import Circle, Line
+from .model.problem import Problem
+from .design.finite_differences import finite_difference
+from .algorithms.solution import Solution
+from .algorithms.stepping import solve
+from .design.gradient import Gradient, gradient
+from . import _compat
 
 __version__ = "0.1.0"
+
+_compat.install()
+
+
+def __getattr__(name):
+    """The 0.1 module names (``sg.io``, ...): the new module, with a DeprecationWarning."""
+    return _compat.module_attribute(name)
 
 __all__ = [
     "AugmentedLagrangian", "Axisymmetric", "Circle", "FBar", "J2Plasticity", "PlaneStrain", "Standard", "Contact", "ConvergenceError", "Coulomb", "Fixed", "InputError",

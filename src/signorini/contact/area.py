@@ -30,7 +30,7 @@ def equivalent_areas(X, edges: np.ndarray, nodes: np.ndarray | None = None, kine
         kinematics: :class:`~signorini.kinematics.PlaneStrain` (default, per unit
             thickness) or :class:`~signorini.kinematics.Axisymmetric` (full 2 pi).
     """
-    from ..kinematics import PLANE_STRAIN
+    from ..fem.kinematics import PLANE_STRAIN
 
     edges = np.asarray(edges)
     if nodes is None:

@@ -24,15 +24,15 @@ import math
 import numpy as np
 
 from ..contact import Contact, Coulomb
-from ..element import FBAR
+from ..fem.element import FBAR
 from ..errors import InputError, UnknownParameterError
-from ..kinematics import Axisymmetric
-from ..loads import Fixed
+from ..fem.kinematics import Axisymmetric
+from ..fem.loads import Fixed
 from ..materials.j2 import J2Plasticity
-from ..mesh import Mesh, rectangle
-from ..obstacles import Line
-from ..problem import Problem
-from ..resources import check_size
+from ..fem.mesh import Mesh, rectangle
+from ..contact.obstacles import Line
+from ..model.problem import Problem
+from ..app.resources import check_size
 
 H0 = 1.0
 SHAPE = tuple(f"phi{k}" for k in range(5))
@@ -139,7 +139,7 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
 def options(rtol: float = 1e-11):
     """Newton options of the forging runs: a line search on the residual norm stops
     stick/slip cycling without cutting load steps (the path stays the same)."""
-    from ..newton import NewtonOptions
+    from ..algorithms.newton import NewtonOptions
 
     return NewtonOptions(rtol=rtol, line_search=True)
 
@@ -181,7 +181,7 @@ def die_force(model):
 
 def body_volume(model, x) -> float:
     """Volume of the body of revolution (full 2 pi) with nodal positions x (n_nodes, 2)."""
-    from .. import element
+    from ..fem import element
     from .._jax import jax, jnp
 
     def cell(xe):
@@ -209,10 +209,10 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     ``adjoint``, ``shape_gradient.csv``, VTU field ``adjoint_shape_gradient`` on
     the last increment).
     """
-    from .. import io, plots
-    from ..runner import (Timer, adjoint_report, prepare_output, solve_or_report, summary_header,
-                          use_solver)
-    from ..sensitivity import finite_difference
+    from ..post import files as io, plots
+    from ..app.runner import (
+        Timer, adjoint_report, prepare_output, solve_or_report, summary_header, use_solver)
+    from ..design.finite_differences import finite_difference
 
     clock = Timer()
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..optimize import METHODS, Objective, minimize, read_history
+from ..design.optimize import METHODS, Objective, minimize, read_history
 from . import forging as fg
 
 log = logging.getLogger("signorini")
@@ -92,7 +92,7 @@ def _start(history: Path, resume: bool) -> tuple[np.ndarray, dict]:
 
 
 def _plot_convergence(path, rows, mu):
-    from .. import plots  # noqa: F401  (Agg backend)
+    from ..post import plots  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
     it = [r["iteration"] for r in rows]
@@ -112,7 +112,7 @@ def _plot_convergence(path, rows, mu):
 
 
 def _plot_shapes(path, runs: list[dict]):
-    from .. import plots  # noqa: F401  (Agg backend)
+    from ..post import plots  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
     Z = np.linspace(0.0, fg.H0, 201)
@@ -144,8 +144,8 @@ def optimise_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method:
                 gtol: float = 1e-6, maxiter: int = 50, gradient: str = "ddm", resume: bool = False,
                 solver="auto", rtol: float = 1e-11, phi_min: float = PHI_MIN) -> dict:
     """One mu: optimise, write ``out/mu_<mu>/`` and return its summary (see :func:`run`)."""
-    from .. import io, plots
-    from ..runner import prepare_output
+    from ..post import files as io, plots
+    from ..app.runner import prepare_output
 
     t0 = time.perf_counter()
     d = prepare_output(_mu_dir(Path(out), mu))
@@ -244,8 +244,8 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
         ``r0_range``, ``iterations``, ``function_evaluations``, ``solves``,
         ``time_wall_s``, ``warnings``, ...).
     """
-    from .. import io
-    from ..runner import prepare_output
+    from ..post import files as io
+    from ..app.runner import prepare_output
 
     t0 = time.perf_counter()
     if method not in METHODS:

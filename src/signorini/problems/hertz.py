@@ -23,12 +23,12 @@ import numpy as np
 
 from ..contact import AugmentedLagrangian, Contact, Penalty
 from ..errors import InputError, SolverError, UnknownParameterError
-from ..loads import Fixed, Pressure
+from ..fem.loads import Fixed, Pressure
 from ..materials import LinearElastic, NeoHooke
-from ..mesh import graded_coordinates, rectangle
-from ..obstacles import Circle
-from ..problem import Problem
-from ..resources import check_size
+from ..fem.mesh import graded_coordinates, rectangle
+from ..contact.obstacles import Circle
+from ..model.problem import Problem
+from ..app.resources import check_size
 
 log = logging.getLogger("signorini")
 
@@ -211,7 +211,7 @@ MIN_GUIDED_DOFS = 50_000
 
 def coarse_start_skipped(pb, coarse_start: bool) -> str | None:
     """Why a CLI run does not start from coarser meshes (None: it does)."""
-    from ..solve import model_for
+    from ..algorithms.stepping import model_for
 
     if not coarse_start:
         return "off"
@@ -227,7 +227,7 @@ def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options
     finest of them a ``guide`` for ``solve(pb, guide=...)``; (None, []) without
     a coarser mesh. A failing coarse level guides only over the increments it
     converged (recorded in ``levels``)."""
-    from ..multilevel import solve_coarse_to_fine
+    from ..algorithms.coarse_to_fine import solve_coarse_to_fine
 
     coarse = [build(r, n) for r, n in coarse_levels(refine, n_fine)]
     if not coarse:
@@ -263,10 +263,12 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     finite-difference re-solves start from the converged base solution. Only
     the first iterate changes, not the result.
     """
-    from .. import checks, io, plots
-    from ..newton import NewtonOptions
-    from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
-    from ..sensitivity import finite_difference
+    from ..model import checks
+    from ..post import files as io, plots
+    from ..algorithms.newton import NewtonOptions
+    from ..app.runner import (
+        Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver)
+    from ..design.finite_differences import finite_difference
 
     clock = Timer()
     out = prepare_output(out)

@@ -162,11 +162,12 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     DDM gradient (``summary.json`` ``adjoint``, ``shape_gradient.csv``, VTU field
     ``adjoint_shape_gradient`` in ``hertz_friction_P3.vtu``).
     """
-    from .. import io, plots
-    from ..newton import NewtonOptions
-    from ..runner import (Timer, adjoint_report, max_rel_diff, prepare_output, solve_or_report,
-                          summary_header, use_solver)
-    from ..sensitivity import finite_difference
+    from ..post import files as io, plots
+    from ..algorithms.newton import NewtonOptions
+    from ..app.runner import (
+        Timer, adjoint_report, max_rel_diff, prepare_output, solve_or_report, summary_header,
+        use_solver)
+    from ..design.finite_differences import finite_difference
 
     clock = Timer()
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 3 or steps % 3:

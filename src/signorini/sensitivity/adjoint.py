@@ -31,7 +31,7 @@ import numpy as np
 from .._jax import jax, jnp, to_device
 from ..errors import SingularTangentError, SolverError
 from ..linsolve import TangentSolver, get_solver, openblas_single_thread
-from ..model import NODES
+from ..model.kernels import NODES
 
 log = logging.getLogger("signorini")
 

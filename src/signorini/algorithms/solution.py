@@ -7,10 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._jax import jax, jnp, to_device
-from .errors import InputError
+from .._jax import jax, jnp, to_device
+from ..errors import InputError
 from .newton import StepLog
-from .params import as_jax, unit_tangents
+from ..params import as_jax, unit_tangents
 
 
 @dataclass
@@ -225,7 +225,7 @@ class Solution:
             out[f"dp_T_d{name}"] = np.asarray(d["p_T"])
             out[f"dgap_d{name}"] = np.asarray(d["gap"])
         if hasattr(s.contact.method, "status"):  # friction: open / stick / slip, slip increment
-            from .contact.friction import STATUS_NAMES
+            from ..contact.friction import STATUS_NAMES
 
             st, gt = m._status(to_device(self._inc(i).w), self._jp, self._inc(i).t,
                                self.state_before(i)[0], surface)

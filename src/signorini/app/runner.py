@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import io
-from .sensitivity import nonsmooth
-from .errors import InputError
+from ..post import files as io
+from ..sensitivity import nonsmooth
+from ..errors import InputError
 
 log = logging.getLogger("signorini")
 
@@ -82,7 +82,7 @@ def write_partial(out: Path, solution, stem: str, reason: str, extra: dict | Non
 def use_solver(solver="auto"):
     """Resolve a solver name once per run (``auto``: the fastest installed) and say
     which one it is in the log."""
-    from .linsolve import get_solver
+    from ..linsolve import get_solver
 
     lin = get_solver(solver)
     log.info("linear solver: %s%s", lin.describe(), " (auto)" if solver == "auto" else "")
@@ -93,8 +93,8 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
     """``signorini.solve(problem, label="base", **solve_kwargs)``; on a Newton failure
     write the converged increments (``<stem>.pvd`` series, last contact table) and a
     ``failed`` summary.json with ``extra`` before re-raising."""
-    from .errors import ConvergenceError
-    from .solve import solve
+    from ..errors import ConvergenceError
+    from ..algorithms.stepping import solve
 
     solver = solve_kwargs.get("solver", "auto")
     extra = {**extra, "solver": getattr(solver, "name", solver)}
@@ -113,7 +113,7 @@ def adjoint_report(out: Path, sol, response, names, description: str, solver, dd
     writes ``shape_gradient.csv`` and attaches the nodal gradient to ``sol`` (so the
     last VTU written holds it as ``adjoint_shape_gradient``). Returns the
     ``summary.json`` entry."""
-    from .gradient import adjoint_gradient
+    from ..design.gradient import adjoint_gradient
 
     t0 = time.perf_counter()
     G, grad, timing = adjoint_gradient(sol, response, list(names) + ["nodes"], increments="last",

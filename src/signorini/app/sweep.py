@@ -162,7 +162,7 @@ def run_point(args: list[str], out: str) -> dict:
     """
     _single_threaded_env()
     from . import cli
-    from .linsolve import mkl_threads
+    from ..linsolve import mkl_threads
 
     summary_path = Path(out) / "summary.json"
     if summary_path.is_file():  # a stale summary from an earlier sweep is not this run's
@@ -369,7 +369,7 @@ def _json_default(o):
 def _optimise_one(out: str, mu: float, kwargs: dict) -> dict:
     """One task: :func:`signorini.problems.forging_opt.optimise_mu` (never raises)."""
     _single_threaded_env()
-    from .problems import forging_opt
+    from ..problems import forging_opt
 
     t0 = time.perf_counter()
     try:
@@ -393,7 +393,7 @@ def optimise_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int
     ``summary.json`` for all mu are written here. A mu whose task raises is
     recorded as failed. Dask options as in :func:`run_sweep`.
     """
-    from .problems import forging_opt
+    from ..problems import forging_opt
 
     def mapper(out_, mus_, kwargs):
         return map_tasks(_optimise_one, [(str(out_), mu, kwargs) for mu in mus_],

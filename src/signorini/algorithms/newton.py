@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError, SingularTangentError
+from ..errors import InputError, SingularTangentError
 
 log = logging.getLogger("signorini")
 

@@ -29,15 +29,15 @@ import time
 
 import numpy as np
 
-from . import element
-from ._jax import jax, jnp, to_device
-from .assembly import SparsityPattern
-from .contact.area import nodal_normals
+from ..fem import element
+from .._jax import jax, jnp, to_device
+from ..fem.assembly import SparsityPattern
+from ..contact.area import nodal_normals
 from .dofs import DofLayout
-from .errors import InputError, SignoriniError
-from .mesh import check_orientation
-from .obstacles import Linearized
-from .params import as_jax, check_names, names_in, resolve, unit_tangents
+from ..errors import InputError, SignoriniError
+from ..fem.mesh import check_orientation
+from ..contact.obstacles import Linearized
+from ..params import as_jax, check_names, names_in, resolve, unit_tangents
 from .problem import Problem
 
 #: reserved parameter name: every nodal coordinate of the reference mesh (n_nodes, 2)

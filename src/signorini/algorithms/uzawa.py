@@ -21,13 +21,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._jax import jax, jnp
-from .contact.uzawa import UzawaPenalty
-from .errors import ConvergenceError, InputError, NonDifferentiableError
-from .linsolve import TangentSolver, get_solver
+from .._jax import jax, jnp
+from ..contact.uzawa import UzawaPenalty
+from ..errors import ConvergenceError, InputError, NonDifferentiableError
+from ..linsolve import TangentSolver, get_solver
 from .newton import NewtonOptions, StepFailure, StepLog, newton
-from .params import as_jax, check_names, unit_tangents
-from .solve import ddm_for, model_for
+from ..params import as_jax, check_names, unit_tangents
+from .stepping import ddm_for, model_for
 
 log = logging.getLogger("signorini")
 

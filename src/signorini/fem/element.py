@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._jax import jax, jnp
+from .._jax import jax, jnp
 from .kinematics import PLANE_STRAIN
-from .materials import det_minus_one
+from ..materials import det_minus_one
 
 _G = 1.0 / np.sqrt(3.0)
 #: Gauss points (4, 2) in the parent square and their weights (4,).

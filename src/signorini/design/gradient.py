@@ -18,15 +18,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._jax import jax, jnp
-from . import checks
-from .errors import InputError, SolverError
-from .model import NODES
-from .newton import NewtonOptions
-from .params import as_jax, check_names
-from .sensitivity import nonsmooth
-from .sensitivity.adjoint import Adjoint
-from .solve import solve, structure_key
+from .._jax import jax, jnp
+from ..model import checks
+from ..errors import InputError, SolverError
+from ..model.kernels import NODES
+from ..algorithms.newton import NewtonOptions
+from ..params import as_jax, check_names
+from ..sensitivity import nonsmooth
+from ..sensitivity.adjoint import Adjoint
+from ..algorithms.stepping import solve, structure_key
 
 MODES = ("ddm", "adjoint", "fd")
 #: compiled adjoints kept per model (one per response object)

@@ -21,18 +21,18 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ._jax import to_device
-from ._memo import ObjectMemo
-from .errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
-from .linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
-from .model import Model
-from . import checks
+from .._jax import to_device
+from .._memo import ObjectMemo
+from ..errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
+from ..linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
+from ..model.kernels import Model
+from ..model import checks
 from .newton import NewtonOptions, StepFailure, StepLog, newton
-from .params import as_jax, check_names
-from .progress import SolveProgress
-from .problem import Problem
-from .sensitivity import nonsmooth
-from .sensitivity.ddm import DDM
+from ..params import as_jax, check_names
+from ..progress import SolveProgress
+from ..model.problem import Problem
+from ..sensitivity import nonsmooth
+from ..sensitivity.ddm import DDM
 from .solution import Increment, Solution
 
 log = logging.getLogger("signorini")
@@ -438,7 +438,7 @@ class _Guide:
     factors (after a step cut) linear in t, from w = 0 at t = 0."""
 
     def __init__(self, guide, model):
-        from .multilevel import Prolongation
+        from .coarse_to_fine import Prolongation
 
         if not isinstance(guide, Solution):
             raise InputError(f"guide must be a Solution of the same problem on a coarser mesh "

@@ -26,7 +26,7 @@ def finite_difference(problem, name: str, quantity: Callable, *, step: float | N
     Returns:
         (quantity(phi + h) - quantity(phi - h)) / (2 h).
     """
-    from ..solve import solve  # solve uses the DDM of this package: imported when called
+    from ..algorithms.stepping import solve  # solve uses the DDM of this package: imported when called
 
     problem.with_params(**{name: 0.0})  # raises a clear error for an unknown name
     base = problem.params[name]

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ._jax import jax, jnp
-from .errors import InputError
-from .params import Spec, resolve
+from .._jax import jax, jnp
+from ..errors import InputError
+from ..params import Spec, resolve
 
 
 def _point(spec, params):

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact.area import check_edges, contact_nodes, nodal_normals
-from .errors import InputError
+from ..contact.area import check_edges, contact_nodes, nodal_normals
+from ..errors import InputError
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,10 @@ import warnings
 
 import numpy as np
 
-from ._jax import jax, jnp, to_device
-from .errors import InputError, SignoriniWarning
-from .obstacles import Circle
-from .params import resolve
+from .._jax import jax, jnp, to_device
+from ..errors import InputError, SignoriniWarning
+from ..contact.obstacles import Circle
+from ..params import resolve
 
 log = logging.getLogger("signorini")
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError, InvertedElementError
+from ..errors import InputError, InvertedElementError
 
 
 @dataclass(frozen=True)

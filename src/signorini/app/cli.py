@@ -11,7 +11,7 @@ import logging
 import sys
 import warnings
 
-from .errors import ConvergenceError, InputError, SignoriniError, SignoriniWarning
+from ..errors import ConvergenceError, InputError, SignoriniError, SignoriniWarning
 
 UNITS = "Units: mm, N/mm (force per unit thickness), N/mm² (MPa)."
 
@@ -91,7 +91,7 @@ def _positive_float(text: str) -> float:
 def parse_sets(items: list[str], allowed: dict) -> dict:
     """``--set NAME=VALUE`` items -> {name: float}; unknown, repeated, non-numeric
     or non-finite values are errors that name the item."""
-    from .params import parse_assignment
+    from ..params import parse_assignment
 
     out: dict[str, float] = {}
     for text in items:
@@ -184,14 +184,14 @@ def _solver_options(p):
 def _a0(name: str) -> float:
     import importlib
 
-    from .problems.hertz import analytical
+    from ..problems.hertz import analytical
 
     d = importlib.import_module(f"signorini.problems.{name}").DEFAULTS
     return float(analytical(d["P"], d["R"], d["E"], d["nu"])["a"])
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .. import __version__
 
     fmt = _Formatter
     parser = argparse.ArgumentParser(
@@ -345,7 +345,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     args.extra = extra
     _configure_logging(args)
-    from . import progress
+    from .. import progress
 
     show = not (args.quiet or args.verbose) and sys.stderr.isatty()
     flt = _OnceFilter()
@@ -393,7 +393,7 @@ def _fmt_fd(d) -> str:
 
 def _dispatch(args) -> int:
     if args.command == "hertz":
-        from .problems import hertz
+        from ..problems import hertz
 
         params = parse_sets(args.set, HERTZ_SET)
         s = hertz.run(args.out, params, refine=args.refine, method=args.method,
@@ -407,7 +407,7 @@ def _dispatch(args) -> int:
               f"DDM vs FD (max rel. diff.): {_fmt_fd(s['ddm_vs_fd_rel_diff'])}; "
               f"solver {s['solver']}")
     elif args.command == "hertz-friction":
-        from .problems import hertz_friction
+        from ..problems import hertz_friction
 
         params = parse_sets(args.set, FRICTION_SET)
         s = hertz_friction.run(args.out, params, refine=args.refine, steps=args.steps,
@@ -422,7 +422,7 @@ def _dispatch(args) -> int:
               f"in total; DDM vs FD at P3 (max rel. diff.): {_fmt_fd(s['ddm_vs_fd_rel_diff_P3'])}")
         _print_adjoint(s)
     elif args.command == "forging":
-        from .problems import forging
+        from ..problems import forging
 
         params = parse_sets(args.set, FORGING_SET)
         s = forging.run(args.out, params, mesh=forging.parse_mesh(args.mesh), steps=args.steps,
@@ -439,7 +439,7 @@ def _dispatch(args) -> int:
             print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
         _print_adjoint(s)
     elif args.command == "optimise-forging":
-        from .problems import forging, forging_opt
+        from ..problems import forging, forging_opt
 
         try:
             mus = [float(m) for m in args.mu.split(",") if m.strip()]

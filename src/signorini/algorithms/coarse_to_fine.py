@@ -30,9 +30,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import Delaunay, cKDTree
 
-from . import checks
-from .errors import InputError
-from .problem import Problem
+from ..model import checks
+from ..errors import InputError
+from ..model.problem import Problem
 from .solution import Solution
 
 log = logging.getLogger("signorini")
@@ -143,7 +143,7 @@ def prolong(coarse: Solution, fine: Problem, increment: int = 0) -> np.ndarray:
     Returns:
         (n_dof,) initial guess for ``signorini.solve(fine, initial=...)``.
     """
-    from .solve import model_for
+    from .stepping import model_for
 
     if not coarse.increments:
         raise InputError("prolong: the coarse solution has no converged increment")
@@ -171,8 +171,8 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensiti
     """
     import time
 
-    from .errors import ConvergenceError
-    from .solve import model_for, solve
+    from ..errors import ConvergenceError
+    from .stepping import model_for, solve
 
     if not problems:
         raise InputError("solve_coarse_to_fine needs at least one problem")

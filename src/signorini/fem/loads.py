@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._jax import jax, jnp
+from .._jax import jax, jnp
 from .kinematics import PLANE_STRAIN
-from .params import Spec, resolve
+from ..params import Spec, resolve
 
 
 def _linear(t):
@@ -85,7 +85,7 @@ class Traction:
     ramp: Callable = _linear
 
     def __post_init__(self):
-        from .errors import InputError
+        from ..errors import InputError
 
         v = self.value
         if isinstance(v, (str, bytes)) or not hasattr(v, "__len__") or len(v) != 2:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import os
 
-from .errors import ResourceError
+from ..errors import ResourceError
 
 log = logging.getLogger("signorini")
 
@@ -60,7 +60,7 @@ def check_size(n_dof: int, *, force: bool = False, what: str = "this run") -> fl
     Raises:
         ResourceError: the estimate exceeds the available memory and ``force`` is False.
     """
-    from .linsolve import get_solver
+    from ..linsolve import get_solver
 
     need = estimated_peak_memory(n_dof, get_solver("auto").name)
     have = available_memory()

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._jax import jnp
-from .errors import InputError
+from .._jax import jnp
+from ..errors import InputError
 
 TWO_PI = 2.0 * np.pi
 

@@ -66,13 +66,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import checks
-from .errors import ConvergenceError, InputError, SignoriniWarning, SolverError
+from ..model import checks
+from ..errors import ConvergenceError, InputError, SignoriniWarning, SolverError
 from .gradient import adjoint_gradient, is_factory
-from .sensitivity import nonsmooth
-from .newton import NewtonOptions
-from .params import check_names
-from .solve import solve
+from ..sensitivity import nonsmooth
+from ..algorithms.newton import NewtonOptions
+from ..params import check_names
+from ..algorithms.stepping import solve
 
 log = logging.getLogger("signorini")
 

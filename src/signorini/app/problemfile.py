@@ -143,14 +143,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty
-from .errors import InputError, SolverError, UnknownParameterError
-from .loads import Fixed, Pressure, Traction
-from .materials import LinearElastic, NeoHooke
-from .mesh import Mesh, rectangle
-from .newton import NewtonOptions
-from .obstacles import Circle, Line
-from .problem import Problem
+from ..contact import AugmentedLagrangian, Contact, Coulomb, Penalty
+from ..errors import InputError, SolverError, UnknownParameterError
+from ..fem.loads import Fixed, Pressure, Traction
+from ..materials import LinearElastic, NeoHooke
+from ..fem.mesh import Mesh, rectangle
+from ..algorithms.newton import NewtonOptions
+from ..contact.obstacles import Circle, Line
+from ..model.problem import Problem
 
 __all__ = ["Response", "RunConfig", "load", "run"]
 
@@ -396,7 +396,7 @@ def _mesh(rd: _Reader, data) -> tuple[Mesh, dict]:
             key = ("file", str(f.resolve()), st.st_mtime_ns, st.st_size)
         except OSError:
             key = None
-        from .io import read_mesh
+        from ..fem.meshfile import read_mesh
 
         def make():
             try:
@@ -706,7 +706,7 @@ def _response_values(sol, problem: Problem, r: Response) -> dict:
                 "x_ref": [float(v) for v in c["x_ref"][j]],
                 "sensitivities": {n: float(c[f"dp_N_d{n}"][j]) for n in names}}
     if r.type == "normal_force":
-        from ._jax import jnp
+        from .._jax import jnp
 
         m, k = sol.model, r.surface
 
@@ -728,7 +728,7 @@ def _response_values(sol, problem: Problem, r: Response) -> dict:
 
 
 def _contact_csv(sol, k: int, path: Path):
-    from . import io
+    from ..post import files as io
 
     c = sol.contact(-1, k)
     cols = {"node": c["node"], "x_ref": c["x_ref"][:, 0], "y_ref": c["x_ref"][:, 1],
@@ -746,7 +746,7 @@ def _contact_csv(sol, k: int, path: Path):
 
 def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: dict) -> None:
     """Files of the last converged increment (and the series); fills ``summary``."""
-    from . import io
+    from ..post import files as io
 
     files = summary["outputs"]
     if not sol.increments:
@@ -793,8 +793,8 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
             and ``summary.json`` with ``"status": "failed"`` and the reason are
             written first.
     """
-    from . import io
-    from .solve import solve
+    from ..post import files as io
+    from ..algorithms.stepping import solve
 
     from .resources import check_size
     from .runner import prepare_output

@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError, UnknownParameterError
-from .kinematics import PLANE_STRAIN
-from .mesh import Mesh
+from ..errors import InputError, UnknownParameterError
+from ..fem.kinematics import PLANE_STRAIN
+from ..fem.mesh import Mesh
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ class Problem:
 
     def resolved_formulation(self):
         """The element formulation used (the default depends on the material)."""
-        from .element import FBAR, STANDARD
+        from ..fem.element import FBAR, STANDARD
 
         form = self.formulation
         if form is None:

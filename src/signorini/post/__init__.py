@@ -1,0 +1,1 @@
+"""Post-processing: result files (VTU/PVD for ParaView, CSV, JSON) and figures."""

@@ -1,0 +1,152 @@
+"""Writing results: VTU and PVD time series for ParaView (meshio), CSV tables,
+JSON summaries. Meshes are read by :mod:`signorini.fem.meshfile`."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import meshio
+import numpy as np
+
+from ..contact.friction import STATUS_NAMES
+from ..errors import InputError
+
+
+def _vec3(a):
+    a = np.asarray(a, dtype=float)
+    return np.column_stack([a, np.zeros(len(a))])
+
+
+def write_vtu(solution, path, i: int = -1) -> Path:
+    """Write one increment as VTU: displacement, contact tractions and gap (point
+    data; with friction also ``contact_status`` 0 open / 1 stick / 2 slip and
+    ``slip_increment``), Cauchy stress (cell data), and the sensitivity of each
+    of them with respect to every design parameter (``d<field>_d<name>``); the
+    switch points of the increment (docs/theory.md §11: point data ``switch`` 1
+    weakly active, 2 stick/slip switch; cell data ``plastic_switch``) and, on
+    the last increment, an adjoint shape gradient if one was attached
+    (``solution.shape_gradient``, (n_nodes, 2))."""
+    path = Path(path)
+    m = solution.model
+    X = solution.reference()
+    point = {"displacement": _vec3(solution.displacement(i))}
+    for name in solution.names:
+        point[f"ddisplacement_d{name}"] = _vec3(solution.displacement_sensitivity(name, i))
+    for k in range(len(m.surfaces)):
+        c = solution.contact(i, k)
+        tag = "" if k == 0 else f"_{k}"
+        for key in ["p_N", "p_T", "gap"] + [f for f in c if f.startswith(("dp_", "dgap_"))]:
+            arr = np.zeros(m.n_nodes)
+            arr[c["node"]] = c[key]
+            point[key + tag] = arr
+        if "status" in c:  # friction: 0 open, 1 stick, 2 slip; -1 off the contact surface
+
+            code = -np.ones(m.n_nodes)
+            code[c["node"]] = [STATUS_NAMES.index(v) for v in c["status"]]
+            point["contact_status" + tag] = code
+            slip = np.zeros(m.n_nodes)
+            slip[c["node"]] = c["slip"]
+            point["slip_increment" + tag] = slip
+    inc = solution.increments[i]
+    if inc.switches is not None:  # docs/theory.md §11: 1 weakly active, 2 stick/slip switch
+        code = np.zeros(m.n_nodes)
+        for nodes in inc.switches["stick_slip"]:
+            code[nodes] = 2
+        for nodes in inc.switches["weakly_active"]:
+            code[nodes] = 1
+        point["switch"] = code
+    stress, dstress = solution.stress(i)
+    cell = {"cauchy_stress": [stress.reshape(-1, 9)]}
+    for name, d in dstress.items():
+        cell[f"dcauchy_stress_d{name}"] = [np.asarray(d).reshape(-1, 9)]
+    alpha = getattr(m.material, "equivalent_plastic_strain", None)
+    state = solution.state_after(range(len(solution.increments))[i])
+    if alpha is not None and m.n_state and state is not None:
+        # Gauss-point history after the increment, averaged per cell
+        cell["equivalent_plastic_strain"] = [np.asarray(state[2])[..., 9].mean(axis=1)]
+        if inc.state_sens is not None:
+            for k, name in enumerate(solution.names):
+                cell[f"dequivalent_plastic_strain_d{name}"] = [
+                    np.asarray(inc.state_sens[2])[k, ..., 9].mean(axis=1)]
+    if inc.switches is not None and m.n_state:
+        on = np.zeros(len(m.conn))
+        on[inc.switches["elastic_plastic"]] = 1
+        cell["plastic_switch"] = [on]
+    if getattr(solution, "shape_gradient", None) is not None and i in (-1, len(solution.increments) - 1):
+        point["adjoint_shape_gradient"] = _vec3(solution.shape_gradient)
+    mesh = meshio.Mesh(_vec3(X), [("quad", m.conn)], point_data=point, cell_data=cell)
+    mesh.write(path)
+    return path
+
+
+def write_pvd(solution, path, increments=None) -> Path:
+    """Write a ParaView time series: one VTU per converged increment and a PVD file.
+
+    Each increment ``k`` (1-based position in ``solution.increments``) is
+    written by :func:`write_vtu` as ``<stem>_<k:04d>.vtu`` in the directory of
+    the ``.pvd`` file; the PVD collection lists them (relative file names) with
+    ``timestep`` = the increment's load factor t. Open the ``.pvd`` in
+    ParaView to step through the load history.
+
+    Args:
+        solution: a :class:`~signorini.solution.Solution` (possibly the
+            ``partial`` of a :class:`~signorini.errors.ConvergenceError`).
+        path: the ``.pvd`` file to write (its directory must exist).
+        increments: indices into ``solution.increments`` to write (default: all).
+
+    Returns:
+        The path of the ``.pvd`` file.
+    """
+
+    path = Path(path)
+    n = len(solution.increments)
+    if increments is None:
+        increments = range(n)
+    idx = []
+    for i in increments:
+        try:
+            idx.append(range(n)[i])
+        except (IndexError, TypeError):
+            raise InputError(f"write_pvd: increment {i!r} does not exist; the solution has {n} "
+                             "converged increment(s)") from None
+    lines = ['<?xml version="1.0"?>',
+             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+             "  <Collection>"]
+    for i in idx:
+        vtu = path.with_name(f"{path.stem}_{i + 1:04d}.vtu")
+        write_vtu(solution, vtu, i)
+        t = float(solution.increments[i].t)
+        lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(vtu.name)}/>')
+    lines += ["  </Collection>", "</VTKFile>", ""]
+    path.write_text("\n".join(lines))
+    return path
+
+
+def write_csv(path, columns: dict) -> Path:
+    """Write equal-length 1-D arrays (or lists) as CSV columns, header = keys."""
+    path = Path(path)
+    keys = list(columns)
+    rows = zip(*[columns[k] for k in keys])
+    with open(path, "w", newline="") as f:
+        wr = csv.writer(f)
+        wr.writerow(keys)
+        for r in rows:
+            wr.writerow([v if isinstance(v, str) else f"{float(v) + 0.0:.12g}" for v in r])  # no -0
+    return path
+
+
+def write_json(path, data: dict) -> Path:
+    path = Path(path)
+
+    def conv(o):
+        if isinstance(o, np.generic):
+            return o.item()
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        raise TypeError(type(o))
+
+    path.write_text(json.dumps(data, indent=2, default=conv) + "\n")
+    return path
