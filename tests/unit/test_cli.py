@@ -51,7 +51,7 @@ def test_run_command_on_the_shipped_example(tmp_path, capsys):
     """`signorini run examples/block.toml`: the example of docs/problem-files.md."""
     from pathlib import Path
 
-    example = Path(__file__).resolve().parents[1] / "examples" / "block.toml"
+    example = Path(__file__).resolve().parents[2] / "examples" / "block.toml"
     out = tmp_path / "block"
     assert main(["run", str(example), "--out", str(out), "-q"]) == 0
     s = json.loads((out / "summary.json").read_text())
