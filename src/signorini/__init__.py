@@ -24,7 +24,7 @@ from .algorithms.stepping import solve
 from .design.gradient import Gradient, gradient
 from . import _compat
 
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: E402
 
 _compat.install()
 

@@ -40,7 +40,7 @@ MOVED = {
     "signorini.sweep": "signorini.app.sweep",
     "signorini.runner": "signorini.app.runner",
     "signorini.problemfile": "signorini.app.problemfile",
-    "signorini.resources": "signorini.app.resources",
+    "signorini.resources": "signorini.linsolve.memory",
 }
 #: old modules whose names went to several new ones
 SPLIT = {"signorini.io": ("signorini.fem.meshfile", "signorini.post.files")}

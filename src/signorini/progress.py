@@ -14,6 +14,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import sys
+from tqdm import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
 log = logging.getLogger("signorini")
 
@@ -37,7 +39,6 @@ def bars(on: bool = True):
     show_bars(on)
     try:
         if on:
-            from tqdm.contrib.logging import logging_redirect_tqdm
 
             # the handlers that print (the root's, as the command line sets them up)
             target = logging.root if logging.root.handlers else log
@@ -59,7 +60,6 @@ class SolveProgress:
         self.n_inc = 0
         self._bar = None
         if _BARS["on"]:
-            from tqdm import tqdm
 
             self._bar = tqdm(total=1000, desc=f"{self.label:>10s}", file=sys.stderr, leave=False,
                              bar_format="{desc}: {percentage:3.0f}%|{bar:20}| {unit}", unit="",

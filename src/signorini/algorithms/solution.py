@@ -7,10 +7,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._jax import jax, jnp, to_device
+from .._jax import jax, to_device
 from ..errors import InputError
 from .newton import StepLog
 from ..params import as_jax, unit_tangents
+from ..contact.friction import STATUS_NAMES
 
 
 @dataclass
@@ -33,7 +34,6 @@ class Increment:
             (:mod:`signorini.sensitivity.nonsmooth`).
         factor: the converged tangent's factorisation (``solve(keep_factors=True)``).
     """
-
     t: float
     w: np.ndarray
     newton: StepLog
@@ -51,7 +51,6 @@ class Solution:
 
     Index ``i`` selects an increment (default ``-1``: the last one).
     """
-
     def __init__(self, model, params: dict, names: list[str]):
         self.model = model
         self.params = params
@@ -225,7 +224,6 @@ class Solution:
             out[f"dp_T_d{name}"] = np.asarray(d["p_T"])
             out[f"dgap_d{name}"] = np.asarray(d["gap"])
         if hasattr(s.contact.method, "status"):  # friction: open / stick / slip, slip increment
-            from ..contact.friction import STATUS_NAMES
 
             st, gt = m._status(to_device(self._inc(i).w), self._jp, self._inc(i).t,
                                self.state_before(i)[0], surface)

@@ -33,6 +33,7 @@ from ..progress import SolveProgress
 from ..model.problem import Problem
 from ..sensitivity import nonsmooth
 from ..sensitivity.ddm import DDM
+from .prolongation import Prolongation
 from .solution import Increment, Solution
 
 log = logging.getLogger("signorini")
@@ -158,7 +159,7 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             symbolic analysis across solves) or an object with ``factorize(K)``.
         label: name of this solve in log lines and progress bars (e.g. ``"FD R+"``).
         initial: (n_dof,) first Newton iterate of the first increment (e.g. a coarse
-            solution from :func:`signorini.multilevel.prolong`, or a converged solution
+            solution from :func:`signorini.algorithms.coarse_to_fine.prolong`, or a converged solution
             of nearby parameters); only the start changes, not the converged result.
         ddm_factorization: ``"exact"`` (default): the DDM factorises the converged
             tangent; ``"reuse"``: it solves with the last Newton factorisation,
@@ -179,9 +180,9 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             :mod:`signorini.sensitivity.nonsmooth`); None: no report (the coarse
             levels of a coarse-to-fine start).
         guide: a solve of the same problem on a coarser mesh along the same load
-            steps (:func:`signorini.multilevel.solve_coarse_to_fine`). Increment
+            steps (:func:`signorini.algorithms.coarse_to_fine.solve_coarse_to_fine`). Increment
             n+1 then starts from w_n + P(w^c_{n+1} - w^c_n), P the interpolation
-            to this mesh (:class:`~signorini.multilevel.Prolongation`), the first
+            to this mesh (:class:`~signorini.algorithms.coarse_to_fine.Prolongation`), the first
             from P(w^c_1) unless ``initial`` is given; between the guide's load
             factors (after a step cut) w^c is interpolated linearly in t, and past
             its last one (a guide that stopped early) the predictor of ``options``
@@ -438,11 +439,9 @@ class _Guide:
     factors (after a step cut) linear in t, from w = 0 at t = 0."""
 
     def __init__(self, guide, model):
-        from .coarse_to_fine import Prolongation
-
         if not isinstance(guide, Solution):
             raise InputError(f"guide must be a Solution of the same problem on a coarser mesh "
-                             f"(signorini.multilevel.solve_coarse_to_fine), got {type(guide).__name__}")
+                             f"(signorini.algorithms.coarse_to_fine.solve_coarse_to_fine), got {type(guide).__name__}")
         self.prolong = Prolongation.between(guide.model, model)
         self.w = {round(inc.t, 12): inc.w for inc in guide.increments}
         self.times = np.array(sorted(self.w))

@@ -151,6 +151,13 @@ from ..fem.mesh import Mesh, rectangle
 from ..algorithms.newton import NewtonOptions
 from ..contact.obstacles import Circle, Line
 from ..model.problem import Problem
+from .._jax import jnp
+from ..algorithms.stepping import solve
+from ..fem.meshfile import read_mesh
+from ..linsolve import check_size
+from ..post import files as io
+from .runner import prepare_output
+from .runner import use_solver
 
 __all__ = ["Response", "RunConfig", "load", "run"]
 
@@ -174,7 +181,6 @@ class Response:
         node_set: node set (displacement and reaction responses).
         component: 0 (x) or 1 (y) (displacement and reaction responses).
     """
-
     name: str
     type: str
     surface: int | None = None
@@ -186,7 +192,6 @@ class Response:
 class RunConfig:
     """How to solve a problem file and what to write (``[solve]``, ``[output]``,
     ``[[response]]``)."""
-
     path: Path
     title: str = ""
     steps: int = 1
@@ -222,7 +227,6 @@ def _kind(v) -> str:
 
 class _Reader:
     """Validation state of one file: its label (for messages) and parameters."""
-
     def __init__(self, path: Path):
         self.path = path
         self.label = str(path)
@@ -234,7 +238,6 @@ class _Reader:
 
 class _Table:
     """One TOML table with strict keys; typed getters name the key on error."""
-
     def __init__(self, rd: _Reader, where: str, data, allowed, required=()):
         self.rd, self.where = rd, where
         if not isinstance(data, dict):
@@ -396,7 +399,6 @@ def _mesh(rd: _Reader, data) -> tuple[Mesh, dict]:
             key = ("file", str(f.resolve()), st.st_mtime_ns, st.st_size)
         except OSError:
             key = None
-        from ..fem.meshfile import read_mesh
 
         def make():
             try:
@@ -706,7 +708,6 @@ def _response_values(sol, problem: Problem, r: Response) -> dict:
                 "x_ref": [float(v) for v in c["x_ref"][j]],
                 "sensitivities": {n: float(c[f"dp_N_d{n}"][j]) for n in names}}
     if r.type == "normal_force":
-        from .._jax import jnp
 
         m, k = sol.model, r.surface
 
@@ -728,7 +729,6 @@ def _response_values(sol, problem: Problem, r: Response) -> dict:
 
 
 def _contact_csv(sol, k: int, path: Path):
-    from ..post import files as io
 
     c = sol.contact(-1, k)
     cols = {"node": c["node"], "x_ref": c["x_ref"][:, 0], "y_ref": c["x_ref"][:, 1],
@@ -746,8 +746,6 @@ def _contact_csv(sol, k: int, path: Path):
 
 def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: dict) -> None:
     """Files of the last converged increment (and the series); fills ``summary``."""
-    from ..post import files as io
-
     files = summary["outputs"]
     if not sol.increments:
         return
@@ -793,11 +791,7 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
             and ``summary.json`` with ``"status": "failed"`` and the reason are
             written first.
     """
-    from ..post import files as io
-    from ..algorithms.stepping import solve
 
-    from .resources import check_size
-    from .runner import prepare_output
 
     problem, cfg = load(path)
     out = prepare_output(out)
@@ -813,7 +807,6 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
                     "max_iter": cfg.options.max_iter, "max_cuts": cfg.options.max_cuts,
                     "predictor": cfg.options.predictor},
     }
-    from .runner import use_solver
 
     solver = use_solver(solver)
     summary["solver"] = solver.name

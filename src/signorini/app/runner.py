@@ -15,6 +15,10 @@ import numpy as np
 from ..post import files as io
 from ..sensitivity import nonsmooth
 from ..errors import InputError
+from ..algorithms.stepping import solve
+from ..design.gradient import adjoint_gradient
+from ..errors import ConvergenceError
+from ..linsolve import get_solver
 
 log = logging.getLogger("signorini")
 
@@ -82,8 +86,6 @@ def write_partial(out: Path, solution, stem: str, reason: str, extra: dict | Non
 def use_solver(solver="auto"):
     """Resolve a solver name once per run (``auto``: the fastest installed) and say
     which one it is in the log."""
-    from ..linsolve import get_solver
-
     lin = get_solver(solver)
     log.info("linear solver: %s%s", lin.describe(), " (auto)" if solver == "auto" else "")
     return lin
@@ -93,9 +95,6 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
     """``signorini.solve(problem, label="base", **solve_kwargs)``; on a Newton failure
     write the converged increments (``<stem>.pvd`` series, last contact table) and a
     ``failed`` summary.json with ``extra`` before re-raising."""
-    from ..errors import ConvergenceError
-    from ..algorithms.stepping import solve
-
     solver = solve_kwargs.get("solver", "auto")
     extra = {**extra, "solver": getattr(solver, "name", solver)}
     try:
@@ -113,8 +112,6 @@ def adjoint_report(out: Path, sol, response, names, description: str, solver, dd
     writes ``shape_gradient.csv`` and attaches the nodal gradient to ``sol`` (so the
     last VTU written holds it as ``adjoint_shape_gradient``). Returns the
     ``summary.json`` entry."""
-    from ..design.gradient import adjoint_gradient
-
     t0 = time.perf_counter()
     G, grad, timing = adjoint_gradient(sol, response, list(names) + ["nodes"], increments="last",
                                        solver=solver)

@@ -5,7 +5,7 @@ A *sweep* runs one ``signorini`` command (``hertz``, ``hertz-friction``,
 parameter values, each point as an independent task, and collects every
 point's ``summary.json`` into one table::
 
-    from signorini.sweep import grid, run_sweep
+    from signorini.app.sweep import grid, run_sweep
     pts = grid(["R=1.0,1.1", "E=100,200"])        # 4 points, R varies slowest
     run_sweep("hertz", pts, "results/sweep", extra_args=["--no-fd"])
 
@@ -22,7 +22,7 @@ Where the tasks run:
   must have ``signorini`` installed and see the output directory);
 * ``sequential=True``: one after another in this process, without Dask.
 
-Every task calls :func:`signorini.cli.main` with the same arguments in all
+Every task calls :func:`signorini.app.cli.main` with the same arguments in all
 three cases, so the results are the same (tested: identical to the last bit
 for ``hertz``). Each worker runs one single-threaded JAX/XLA
 (:data:`WORKER_ENV`), so N workers use N cores and do not oversubscribe.
@@ -50,10 +50,8 @@ directory relative to ``out``); then the summary's entries (``status`` and
   an empty or longer list, or a list of strings (``warnings``), is reduced to its length
   (``newton_residuals.0.len``, ``warnings.len``).
 
-:func:`optimise_mus_parallel` runs the per-mu preform optimisations of
-``optimise-forging`` (:func:`signorini.problems.forging_opt.optimise_mu`) as
-parallel tasks and writes the same files as
-:func:`signorini.problems.forging_opt.run`.
+The per-mu preform optimisations of ``optimise-forging`` use the same tasks
+(:func:`map_tasks`), see :mod:`signorini.app.commands.optimise_forging`.
 """
 
 from __future__ import annotations
@@ -66,6 +64,10 @@ import json
 import os
 import time
 from pathlib import Path
+
+import numpy as np
+from ..linsolve import mkl_threads
+from . import cli
 
 #: environment of the worker processes: one thread for XLA and BLAS/OpenMP per worker
 WORKER_ENV = {
@@ -121,7 +123,6 @@ def grid(assignments: list[str]) -> list[dict]:
             except (ValueError, IndexError):
                 raise ValueError(f"{item!r}: a range is START:STOP:NUM with NUM >= 1 "
                                  "points") from None
-            import numpy as np
 
             vals = [float(v) for v in np.linspace(start, stop, num)]
         else:
@@ -147,7 +148,7 @@ def point_args(command: str, point: dict, out, extra_args=()) -> list[str]:
 
 # --------------------------------------------------------------------------- tasks
 
-def _single_threaded_env() -> None:
+def single_threaded_env() -> None:
     """Before JAX is first imported in this process: one XLA/BLAS thread (a no-op
     afterwards, and for variables already set)."""
     for k, v in WORKER_ENV.items():
@@ -155,15 +156,12 @@ def _single_threaded_env() -> None:
 
 
 def run_point(args: list[str], out: str) -> dict:
-    """One task: ``signorini.cli.main(args)`` in this process, with its output captured.
+    """One task: ``signorini.app.cli.main(args)`` in this process, with its output captured.
 
     Returns {"exit_code", "summary" (the point's summary.json or None), "stderr"
     (the last 4000 characters), "time_s"}. Never raises for a failing point.
     """
-    _single_threaded_env()
-    from . import cli
-    from ..linsolve import mkl_threads
-
+    single_threaded_env()
     summary_path = Path(out) / "summary.json"
     if summary_path.is_file():  # a stale summary from an earlier sweep is not this run's
         summary_path.unlink()
@@ -191,7 +189,7 @@ def run_point(args: list[str], out: str) -> dict:
 def dask_client(scheduler=None, n_workers=None):
     """A :class:`distributed.Client`: to ``scheduler`` if given, else to a new
     LocalCluster of ``n_workers`` single-threaded worker processes (closed on exit)."""
-    from distributed import Client, LocalCluster
+    from distributed import Client, LocalCluster  # lazy: heavy, only Dask runs need it
 
     if scheduler is not None:
         with Client(scheduler) as client:
@@ -353,7 +351,6 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
 
 def _json_default(o):
     try:
-        import numpy as np
 
         if isinstance(o, np.generic):
             return o.item()
@@ -362,48 +359,3 @@ def _json_default(o):
     except ImportError:  # pragma: no cover
         pass
     return str(o)
-
-
-# --------------------------------------------------------------------------- forging optimisation
-
-def _optimise_one(out: str, mu: float, kwargs: dict) -> dict:
-    """One task: :func:`signorini.problems.forging_opt.optimise_mu` (never raises)."""
-    _single_threaded_env()
-    from ..problems import forging_opt
-
-    t0 = time.perf_counter()
-    try:
-        return forging_opt.optimise_mu(Path(out), mu, **kwargs)
-    except Exception as e:  # noqa: BLE001  (one mu failing must not stop the others)
-        return {"mu": float(mu), "status": "failed", "reason": f"{type(e).__name__}: {e}",
-                "time_wall_s": time.perf_counter() - t0, "warnings": []}
-
-
-def optimise_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int = 50,
-                          method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50,
-                          gradient: str = "ddm", resume: bool = False, solver="auto",
-                          rtol: float = 1e-11, phi_min=None, scheduler=None, n_workers=None,
-                          sequential: bool = False, client=None) -> dict:
-    """:func:`signorini.problems.forging_opt.run` with one Dask task per mu.
-
-    Same arguments, files and returned summary as ``forging_opt.run`` (plus
-    ``"parallel"`` in the summary): each task calls
-    :func:`~signorini.problems.forging_opt.optimise_mu`, which writes only
-    ``out/mu_<mu>/`` and returns its summary; ``shapes.png`` and
-    ``summary.json`` for all mu are written here. A mu whose task raises is
-    recorded as failed. Dask options as in :func:`run_sweep`.
-    """
-    from ..problems import forging_opt
-
-    def mapper(out_, mus_, kwargs):
-        return map_tasks(_optimise_one, [(str(out_), mu, kwargs) for mu in mus_],
-                         scheduler=scheduler, n_workers=n_workers, sequential=sequential,
-                         client=client)
-
-    where = "sequential" if sequential else ("client" if client is not None else
-                                             (scheduler or f"local cluster, "
-                                              f"{n_workers or os.cpu_count()} workers"))
-    return forging_opt.run(out, mus, mesh=mesh, steps=steps, method=method, gtol=gtol,
-                           maxiter=maxiter, gradient=gradient, resume=resume, solver=solver,
-                           rtol=rtol, phi_min=forging_opt.PHI_MIN if phi_min is None else phi_min,
-                           mapper=mapper, extra_summary={"parallel": where})

@@ -13,6 +13,7 @@ import numpy as np
 
 from .._jax import jnp
 from ..errors import InputError
+from ..fem.kinematics import PLANE_STRAIN
 
 
 def contact_nodes(edges: np.ndarray) -> np.ndarray:
@@ -30,8 +31,6 @@ def equivalent_areas(X, edges: np.ndarray, nodes: np.ndarray | None = None, kine
         kinematics: :class:`~signorini.kinematics.PlaneStrain` (default, per unit
             thickness) or :class:`~signorini.kinematics.Axisymmetric` (full 2 pi).
     """
-    from ..fem.kinematics import PLANE_STRAIN
-
     edges = np.asarray(edges)
     if nodes is None:
         nodes = contact_nodes(edges)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from ..algorithms.stepping import solve
 
 
 def finite_difference(problem, name: str, quantity: Callable, *, step: float | None = None,
@@ -26,8 +27,6 @@ def finite_difference(problem, name: str, quantity: Callable, *, step: float | N
     Returns:
         (quantity(phi + h) - quantity(phi - h)) / (2 h).
     """
-    from ..algorithms.stepping import solve  # solve uses the DDM of this package: imported when called
-
     problem.with_params(**{name: 0.0})  # raises a clear error for an unknown name
     base = problem.params[name]
     h = step if step is not None else rel_step * max(abs(base), 1.0)

@@ -66,6 +66,7 @@ from pathlib import Path
 
 import numpy as np
 
+import scipy.optimize as so
 from ..model import checks
 from ..errors import ConvergenceError, InputError, SignoriniWarning, SolverError
 from .gradient import adjoint_gradient, is_factory
@@ -580,7 +581,6 @@ def minimize(objective: Objective, x0, method: str = "BFGS", *, bounds=None, con
         solves, failed, time``), ``evaluations`` (the records of this call),
         ``n_solves``, ``n_failed``, ``time`` [s] and ``names``.
     """
-    import scipy.optimize as so
 
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")

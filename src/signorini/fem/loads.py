@@ -17,6 +17,7 @@ import numpy as np
 from .._jax import jax, jnp
 from .kinematics import PLANE_STRAIN
 from ..params import Spec, resolve
+from ..errors import InputError
 
 
 def _linear(t):
@@ -33,7 +34,6 @@ def _edge_weights(X, edges, kinematics):
 class Fixed:
     """Prescribed displacement ``value * ramp(t)`` of component ``component``
     (0 = x / r, 1 = y / z) on the nodes of ``node_set``."""
-
     node_set: str
     component: int
     value: Spec = 0.0
@@ -51,7 +51,6 @@ class Pressure:
     the resultant force (per unit thickness) and the pressure is value / length
     of the edge set in the reference configuration.
     """
-
     edges: str
     value: Spec
     resultant: bool = False
@@ -78,14 +77,12 @@ class Traction:
 
     With ``resultant=True`` the value is the resultant force vector.
     """
-
     edges: str
     value: tuple[Spec, Spec]
     resultant: bool = False
     ramp: Callable = _linear
 
     def __post_init__(self):
-        from ..errors import InputError
 
         v = self.value
         if isinstance(v, (str, bytes)) or not hasattr(v, "__len__") or len(v) != 2:

@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import InputError, UnknownParameterError
 from ..fem.kinematics import PLANE_STRAIN
 from ..fem.mesh import Mesh
+from ..fem.element import FBAR, STANDARD
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,6 @@ class Problem:
             :class:`~signorini.element.FBar`; default (None): F-bar for
             materials with history (plasticity), standard otherwise.
     """
-
     mesh: Mesh
     material: object
     params: Mapping[str, float]
@@ -79,8 +79,6 @@ class Problem:
 
     def resolved_formulation(self):
         """The element formulation used (the default depends on the material)."""
-        from ..fem.element import FBAR, STANDARD
-
         form = self.formulation
         if form is None:
             form = FBAR if getattr(self.material, "n_state", 0) else STANDARD

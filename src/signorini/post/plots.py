@@ -8,6 +8,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.collections import PolyCollection
 
 
 def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "",
@@ -38,7 +39,6 @@ def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "
 def meshes(path, panels: list[dict], *, title: str = "") -> Path:
     """Draw quad meshes side by side. Each panel: ``{"x": (n_nodes, 2), "cells":
     (n_cells, 4), "title": str, "color": cell values (optional)}``; equal axes."""
-    from matplotlib.collections import PolyCollection
 
     fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels) + 1, 4.6), dpi=120,
                              sharey=True, squeeze=False)

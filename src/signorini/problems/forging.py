@@ -32,7 +32,10 @@ from ..materials.j2 import J2Plasticity
 from ..fem.mesh import Mesh, rectangle
 from ..contact.obstacles import Line
 from ..model.problem import Problem
-from ..app.resources import check_size
+from ..linsolve import check_size
+from .._jax import jax, jnp
+from ..algorithms.newton import NewtonOptions
+from ..fem import element
 
 H0 = 1.0
 SHAPE = tuple(f"phi{k}" for k in range(5))
@@ -139,8 +142,6 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
 def options(rtol: float = 1e-11):
     """Newton options of the forging runs: a line search on the residual norm stops
     stick/slip cycling without cutting load steps (the path stays the same)."""
-    from ..algorithms.newton import NewtonOptions
-
     return NewtonOptions(rtol=rtol, line_search=True)
 
 
@@ -181,116 +182,8 @@ def die_force(model):
 
 def body_volume(model, x) -> float:
     """Volume of the body of revolution (full 2 pi) with nodal positions x (n_nodes, 2)."""
-    from ..fem import element
-    from .._jax import jax, jnp
-
     def cell(xe):
         _, detJ = element._gradients(element._DN, xe)
         return model.kinematics.volume_weights(xe, element._N, element.GAUSS_WEIGHTS * detJ).sum()
 
     return float(jax.vmap(cell)(jnp.asarray(x)[model.conn]).sum())
-
-
-def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
-        fd_check: bool = True, solver="auto", force_size: bool = False, rtol: float = 1e-11,
-        fd_step: float = 1e-6, adjoint: bool = False) -> dict:
-    """Upset the billet with DDM sensitivities of the objective F (eq. 24) and write results.
-
-    Writes into ``out``: ``summary.json`` (F, DF/Dphi_k, DF/Dmu, DF/Dsigma_y by DDM
-    and, unless ``fd_check`` is False, by central differences with step
-    ``fd_step`` max(|phi|, 1) (1e-6 h0 for the shape, the paper's), final lateral
-    radii, die force, billet volume, Newton iterations, wall time, warnings);
-    ``table1.csv`` (the paper's Table 1 analogue); ``shape.png`` (initial and
-    deformed mesh, plastic strain); ``force.png`` (die force against stroke);
-    ``forging.pvd`` with one VTU per increment. Returns the summary. On a Newton
-    failure the converged increments and a ``failed`` summary are written first.
-    ``adjoint``: also the adjoint gradient of F with respect to the same
-    parameters and every nodal coordinate, next to the DDM one (``summary.json``
-    ``adjoint``, ``shape_gradient.csv``, VTU field ``adjoint_shape_gradient`` on
-    the last increment).
-    """
-    from ..post import files as io, plots
-    from ..app.runner import (
-        Timer, adjoint_report, prepare_output, solve_or_report, summary_header, use_solver)
-    from ..design.finite_differences import finite_difference
-
-    clock = Timer()
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise InputError(f"--steps must be a whole number >= 1, got {steps!r}")
-    out = prepare_output(out)
-    pb = forging_problem(params, mesh=mesh, force_size=force_size)
-    v = pb.params
-    opts = options(rtol)
-    solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
-    names = list(TABLE1)
-    info = {"n_r": mesh[0], "n_z": mesh[1], "nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells}
-    t0 = clock()
-    sol = solve_or_report(out, "forging", pb, {"params": v, "mesh": info}, steps=steps,
-                          sensitivities=names, options=opts, solver=solver)
-    t_solve = clock() - t0
-    model = sol.model
-    lat = lateral_nodes(pb)
-    F_fn = objective(model, lat)
-    F, dF = sol.response(F_fn, key=("forging-objective",))
-    dF = {k: float(val) for k, val in dF.items()}
-    adj = None
-    if adjoint:
-        adj = adjoint_report(out, sol, lambda m: objective(m, lat), names,
-                             "F = sum (r_k - r_opt)^2 over the lateral nodes (forging.objective)",
-                             solver, dF)
-    force_fn = die_force(model)
-    force = [float(sol.response(force_fn, k, with_sensitivities=False, key=("die-force",))[0])
-             for k in range(len(sol.increments))]
-    X = sol.reference()
-    x = sol.current()
-    vol0, vol1 = body_volume(model, X), body_volume(model, x)
-
-    fd, rel = {}, {}
-    if fd_check:
-        q = lambda s: float(s.response(F_fn, with_sensitivities=False, key=("forging-objective",))[0])
-        for n in names:
-            fd[n] = float(finite_difference(pb, n, q, steps=steps, options=opts, solver=solver,
-                                            rel_step=fd_step))
-            rel[n] = abs(dF[n] - fd[n]) / abs(dF[n]) if dF[n] else abs(fd[n])
-    rows = {"parameter": names, "DDM": [dF[n] for n in names]}
-    if fd_check:
-        rows["FD"] = [fd[n] for n in names]
-        rows["rel_diff"] = [rel[n] for n in names]
-    io.write_csv(out / "table1.csv", rows)
-    io.write_pvd(sol, out / "forging.pvd")
-
-    alpha = np.asarray(sol.increments[-1].state[2])[..., 9].mean(axis=1)
-    plots.meshes(out / "shape.png", [
-        {"x": X, "cells": model.conn, "title": "initial (preform)"},
-        {"x": x, "cells": model.conn, "title": f"after {v['stroke'] / H0:.0%} stroke",
-         "color": alpha, "color_label": "equivalent plastic strain"}],
-        title=f"Forging, mu = {v['mu']:g}, F = {float(F):.4g}")
-    plots.curves(out / "force.png", [
-        {"x": [inc.t * v["stroke"] for inc in sol.increments], "y": force, "label": "die force"}],
-        xlabel="die stroke [h0]", ylabel="axial force (full 2 pi) [N]",
-        title="Forging: die force against stroke")
-
-    summary = summary_header("converged", sol)
-    summary.update({
-        "params": v,
-        "mesh": {**info, "dofs": int(model.n_dof)},
-        "steps": steps,
-        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
-        "F": float(F),
-        "dF_ddm": dF,
-        "dF_fd": fd if fd_check else "not computed (--no-fd)",
-        "ddm_vs_fd_rel_diff": rel if fd_check else "not computed (--no-fd)",
-        "adjoint": adj if adjoint else "not computed (use --adjoint)",
-        "fd_step": {n: fd_step * max(abs(v[n]), 1.0) for n in names},
-        "lateral_radii_final": (x[lat, 0]).tolist(),
-        "max_rel_deviation_from_r_opt": float(np.max(np.abs(x[lat, 0] - H0)) / H0),
-        "die_force_final": force[-1],
-        "volume": {"initial": vol0, "final": vol1, "ratio": vol1 / vol0},
-        "max_equivalent_plastic_strain": float(np.asarray(sol.increments[-1].state[2])[..., 9].max()),
-        "newton_iterations": sol.newton_iterations,
-        "time_solve_s": t_solve,
-        "time_wall_s": clock(),
-    })
-    summary["warnings"] = list(sol.warnings)
-    io.write_json(out / "summary.json", summary)
-    return summary

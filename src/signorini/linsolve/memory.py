@@ -13,6 +13,7 @@ import logging
 import os
 
 from ..errors import ResourceError
+from .select import get_solver
 
 log = logging.getLogger("signorini")
 
@@ -60,8 +61,6 @@ def check_size(n_dof: int, *, force: bool = False, what: str = "this run") -> fl
     Raises:
         ResourceError: the estimate exceeds the available memory and ``force`` is False.
     """
-    from ..linsolve import get_solver
-
     need = estimated_peak_memory(n_dof, get_solver("auto").name)
     have = available_memory()
     log.info("%s: %d unknowns, estimated peak memory %.2g GB (%s available)", what, n_dof,

@@ -1,0 +1,105 @@
+"""Interpolation of a solution from a coarser mesh of the same body to a finer
+one (:class:`Prolongation`): bilinear inside the coarse cells, along the
+surface for the contact multipliers. Used by the coarse-to-fine start."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import Delaunay, cKDTree
+
+from ..errors import InputError
+
+def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
+    """(nf, nc) interpolation matrix: piecewise linear on the Delaunay triangulation
+    of the coarse points Xc; a point outside it takes the nearest coarse point."""
+    nf, nc = len(Xf), len(Xc)
+    tri = Delaunay(Xc)
+    simplex = tri.find_simplex(Xf)
+    inside = simplex >= 0
+    rows, cols, vals = [], [], []
+    if inside.any():
+        s = simplex[inside]
+        T = tri.transform[s]  # (m, 3, 2): inverse affine map and the offset
+        b = np.einsum("mij,mj->mi", T[:, :2], Xf[inside] - T[:, 2])
+        bary = np.column_stack([b, 1.0 - b.sum(axis=1)])
+        rows.append(np.repeat(np.nonzero(inside)[0], 3))
+        cols.append(tri.simplices[s].ravel())
+        vals.append(bary.ravel())
+    if (~inside).any():
+        _, near = cKDTree(Xc).query(Xf[~inside])
+        rows.append(np.nonzero(~inside)[0])
+        cols.append(near)
+        vals.append(np.ones(near.size))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(nf, nc))
+
+
+def _along_surface(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
+    """(nf, nc) matrix taking values at coarse surface nodes Xc to points Xf on the
+    same curve: linear between the two nearest coarse nodes (clamped to the segment)."""
+    nf, nc = len(Xf), len(Xc)
+    if nc == 1:
+        return sp.csr_matrix((np.ones(nf), (np.arange(nf), np.zeros(nf, dtype=int))), shape=(nf, 1))
+    _, idx = cKDTree(Xc).query(Xf, k=2)
+    a, b = Xc[idx[:, 0]], Xc[idx[:, 1]]
+    d = b - a
+    s = np.clip(np.einsum("ij,ij->i", Xf - a, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
+    rows = np.repeat(np.arange(nf), 2)
+    return sp.csr_matrix((np.column_stack([1.0 - s, s]).ravel(), (rows, idx.ravel())), shape=(nf, nc))
+
+
+class Prolongation:
+    """The interpolation of unknowns from a coarse model to a fine one, built once
+    as a sparse matrix (it is linear in the coarse unknowns).
+
+    Displacements: piecewise linear on a triangulation of the coarse nodes
+    (nearest node outside it); contact multipliers (nominal tractions): linear
+    along each contact surface, surface k of the coarse model to surface k of
+    the fine one.
+    """
+
+    def __init__(self, coarse_model, fine_model):
+        cm, fm = coarse_model, fine_model
+        if len(cm.surfaces) != len(fm.surfaces) or any(
+                a.n_mult != b.n_mult for a, b in zip(cm.surfaces, fm.surfaces)):
+            raise InputError("prolong: the coarse and fine problems must have the same contact "
+                             "surfaces (in the same order, with the same multipliers per node)")
+        Xc, Xf = np.asarray(cm._X0_np), np.asarray(fm._X0_np)
+        self.coarse_model, self.fine_model = cm, fm
+        if cm.n_dof == fm.n_dof and Xc.shape == Xf.shape and np.array_equal(Xc, Xf) and all(
+                np.array_equal(a.nodes, b.nodes) and a.lam_offset == b.lam_offset
+                for a, b in zip(cm.surfaces, fm.surfaces)):
+            self.matrix = sp.identity(fm.n_dof, format="csr")  # the same mesh (other parameters)
+            return
+        blocks = []
+        Pu = _linear_weights(Xc, Xf)  # nodes -> nodes; DOFs interleave (x, y) per node
+        blocks.append((sp.kron(Pu, sp.identity(2)), 0, 0))
+        for sc, sf in zip(cm.surfaces, fm.surfaces):
+            Ps = _along_surface(Xc[sc.nodes], Xf[sf.nodes])
+            blocks.append((sp.kron(Ps, sp.identity(sf.n_mult)), sf.lam_offset, sc.lam_offset))
+        rows, cols, vals = [], [], []
+        for B, r0, c0 in blocks:
+            B = B.tocoo()
+            rows.append(B.row + r0)
+            cols.append(B.col + c0)
+            vals.append(B.data)
+        self.matrix = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                    shape=(fm.n_dof, cm.n_dof))
+
+    @classmethod
+    def between(cls, coarse_model, fine_model) -> "Prolongation":
+        """The prolongation of these two models, built once and kept by the fine
+        model (it depends only on their meshes, not on parameter values: 75 ms of
+        a 230 ms coarse-to-fine solve at 56k DOFs when rebuilt every solve)."""
+        key = ("prolongation", id(coarse_model))
+        kept = fine_model.cache.get(key)
+        if kept is None or kept.coarse_model is not coarse_model:
+            kept = fine_model.cache[key] = cls(coarse_model, fine_model)
+        return kept
+
+    def __call__(self, w_coarse) -> np.ndarray:
+        """(fine n_dof,) interpolation of coarse unknowns (coarse n_dof,)."""
+        return self.matrix @ np.asarray(w_coarse, dtype=float)
+
+

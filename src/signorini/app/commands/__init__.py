@@ -1,0 +1,1 @@
+"""One module per ``signorini`` command (see :mod:`signorini.app.registry`)."""

@@ -1,0 +1,177 @@
+"""``signorini forging``: axisymmetric J2 forging of a Bezier preform (paper
+5.3, Table 1): the objective, its DDM sensitivities, the FD check and the
+optional adjoint, written as summary.json, table1.csv, figures and a .pvd series."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...design.finite_differences import finite_difference
+from ...errors import InputError
+from ...post import files as io, plots
+from ...problems import forging
+from ...problems.forging import (
+    H0, TABLE1, body_volume, die_force, forging_problem, lateral_nodes, objective, options)
+from ..options import (
+    Formatter, adjoint_option, finish, forging_mesh_options, parse_sets, print_adjoint, set_help,
+    solver_options)
+from ..runner import Timer, adjoint_report, prepare_output, solve_or_report, summary_header, use_solver
+
+NAME = "forging"
+
+
+FORGING_SET = {
+    **{f"phi{k}": f"Bezier control radius {k} of the preform [h0], default 0.7 (cylinder)"
+       for k in range(5)},
+    "mu": "Coulomb friction coefficient on the die, default 0.2",
+    "sigma_y": "initial yield stress, default 100",
+    "H": "linear isotropic hardening modulus, default 0",
+    "E": "Young's modulus, default 1e4",
+    "nu": "Poisson's ratio, default 0.3",
+    "stroke": "die travel [h0], default 0.5 (50 %% height reduction)",
+    "eps": "normal augmentation parameter, default E0/h0",
+    "eps_t": "tangential augmentation parameter, default eps",
+}
+
+
+def add_parser(sub) -> None:
+    """Add this command's sub-parser to ``sub``."""
+    fg = sub.add_parser(
+        "forging", formatter_class=Formatter,
+        help="axisymmetric J2 forging of a Bezier preform with friction (paper 5.3, Table 1)",
+        description="A billet (height 2 h0 = 2, half model) upset by a flat rigid die with Coulomb "
+                    "friction to 50 % height reduction: axisymmetric finite-strain J2 plasticity "
+                    "(F-bar Q4), preform radius r0(Z) = Bezier curve of phi0..phi4. Computes the "
+                    "objective F = sum (r_k - h0)^2 over the free-surface nodes and its DDM "
+                    "sensitivities to phi0..phi4, mu and sigma_y, checked by central differences. "
+                    "Writes summary.json, table1.csv, shape.png, force.png and forging.pvd. "
+                    "Units: lengths in h0, stresses in the units of E.")
+    fg.add_argument("--out", required=True, metavar="DIR",
+                    help="output directory (created if needed; must be writable)")
+    fg.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help=set_help(FORGING_SET))
+    forging_mesh_options(fg)
+    fg.add_argument("--no-fd", action="store_true",
+                    help="skip the central-difference check (14 re-solves of the whole path)")
+    adjoint_option(fg, "F")
+    solver_options(fg)
+
+
+def execute(args) -> int:
+    """Run the command for parsed ``args``; the exit code."""
+    params = parse_sets(args.set, FORGING_SET)
+    s = run(args.out, params, mesh=forging.parse_mesh(args.mesh), steps=args.steps,
+                    fd_check=not args.no_fd, solver=args.solver, force_size=args.force_size,
+                    adjoint=args.adjoint)
+    print(f"forging ({s['mesh']['dofs']} DOFs, {s['steps']} increments, mu = "
+          f"{s['params']['mu']:g}): F = {s['F']:.6g}, max |r - h0| / h0 = "
+          f"{s['max_rel_deviation_from_r_opt']:.4f}, die force {s['die_force_final']:.5g}, "
+          f"volume ratio {s['volume']['ratio']:.4f}")
+    print(f"{'parameter':>10} {'DDM':>14} {'FD':>14} {'rel. diff.':>10}")
+    for n, d in s["dF_ddm"].items():
+        fd = s["dF_fd"][n] if isinstance(s["dF_fd"], dict) else float("nan")
+        rel = s["ddm_vs_fd_rel_diff"][n] if isinstance(s["ddm_vs_fd_rel_diff"], dict) else float("nan")
+        print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
+    print_adjoint(s)
+    return finish(args, s)
+
+
+def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
+        fd_check: bool = True, solver="auto", force_size: bool = False, rtol: float = 1e-11,
+        fd_step: float = 1e-6, adjoint: bool = False) -> dict:
+    """Upset the billet with DDM sensitivities of the objective F (eq. 24) and write results.
+
+    Writes into ``out``: ``summary.json`` (F, DF/Dphi_k, DF/Dmu, DF/Dsigma_y by DDM
+    and, unless ``fd_check`` is False, by central differences with step
+    ``fd_step`` max(|phi|, 1) (1e-6 h0 for the shape, the paper's), final lateral
+    radii, die force, billet volume, Newton iterations, wall time, warnings);
+    ``table1.csv`` (the paper's Table 1 analogue); ``shape.png`` (initial and
+    deformed mesh, plastic strain); ``force.png`` (die force against stroke);
+    ``forging.pvd`` with one VTU per increment. Returns the summary. On a Newton
+    failure the converged increments and a ``failed`` summary are written first.
+    ``adjoint``: also the adjoint gradient of F with respect to the same
+    parameters and every nodal coordinate, next to the DDM one (``summary.json``
+    ``adjoint``, ``shape_gradient.csv``, VTU field ``adjoint_shape_gradient`` on
+    the last increment).
+    """
+
+    clock = Timer()
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise InputError(f"--steps must be a whole number >= 1, got {steps!r}")
+    out = prepare_output(out)
+    pb = forging_problem(params, mesh=mesh, force_size=force_size)
+    v = pb.params
+    opts = options(rtol)
+    solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
+    names = list(TABLE1)
+    info = {"n_r": mesh[0], "n_z": mesh[1], "nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells}
+    t0 = clock()
+    sol = solve_or_report(out, "forging", pb, {"params": v, "mesh": info}, steps=steps,
+                          sensitivities=names, options=opts, solver=solver)
+    t_solve = clock() - t0
+    model = sol.model
+    lat = lateral_nodes(pb)
+    F_fn = objective(model, lat)
+    F, dF = sol.response(F_fn, key=("forging-objective",))
+    dF = {k: float(val) for k, val in dF.items()}
+    adj = None
+    if adjoint:
+        adj = adjoint_report(out, sol, lambda m: objective(m, lat), names,
+                             "F = sum (r_k - r_opt)^2 over the lateral nodes (forging.objective)",
+                             solver, dF)
+    force_fn = die_force(model)
+    force = [float(sol.response(force_fn, k, with_sensitivities=False, key=("die-force",))[0])
+             for k in range(len(sol.increments))]
+    X = sol.reference()
+    x = sol.current()
+    vol0, vol1 = body_volume(model, X), body_volume(model, x)
+
+    fd, rel = {}, {}
+    if fd_check:
+        q = lambda s: float(s.response(F_fn, with_sensitivities=False, key=("forging-objective",))[0])
+        for n in names:
+            fd[n] = float(finite_difference(pb, n, q, steps=steps, options=opts, solver=solver,
+                                            rel_step=fd_step))
+            rel[n] = abs(dF[n] - fd[n]) / abs(dF[n]) if dF[n] else abs(fd[n])
+    rows = {"parameter": names, "DDM": [dF[n] for n in names]}
+    if fd_check:
+        rows["FD"] = [fd[n] for n in names]
+        rows["rel_diff"] = [rel[n] for n in names]
+    io.write_csv(out / "table1.csv", rows)
+    io.write_pvd(sol, out / "forging.pvd")
+
+    alpha = np.asarray(sol.increments[-1].state[2])[..., 9].mean(axis=1)
+    plots.meshes(out / "shape.png", [
+        {"x": X, "cells": model.conn, "title": "initial (preform)"},
+        {"x": x, "cells": model.conn, "title": f"after {v['stroke'] / H0:.0%} stroke",
+         "color": alpha, "color_label": "equivalent plastic strain"}],
+        title=f"Forging, mu = {v['mu']:g}, F = {float(F):.4g}")
+    plots.curves(out / "force.png", [
+        {"x": [inc.t * v["stroke"] for inc in sol.increments], "y": force, "label": "die force"}],
+        xlabel="die stroke [h0]", ylabel="axial force (full 2 pi) [N]",
+        title="Forging: die force against stroke")
+
+    summary = summary_header("converged", sol)
+    summary.update({
+        "params": v,
+        "mesh": {**info, "dofs": int(model.n_dof)},
+        "steps": steps,
+        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
+        "F": float(F),
+        "dF_ddm": dF,
+        "dF_fd": fd if fd_check else "not computed (--no-fd)",
+        "ddm_vs_fd_rel_diff": rel if fd_check else "not computed (--no-fd)",
+        "adjoint": adj if adjoint else "not computed (use --adjoint)",
+        "fd_step": {n: fd_step * max(abs(v[n]), 1.0) for n in names},
+        "lateral_radii_final": (x[lat, 0]).tolist(),
+        "max_rel_deviation_from_r_opt": float(np.max(np.abs(x[lat, 0] - H0)) / H0),
+        "die_force_final": force[-1],
+        "volume": {"initial": vol0, "final": vol1, "ratio": vol1 / vol0},
+        "max_equivalent_plastic_strain": float(np.asarray(sol.increments[-1].state[2])[..., 9].max()),
+        "newton_iterations": sol.newton_iterations,
+        "time_solve_s": t_solve,
+        "time_wall_s": clock(),
+    })
+    summary["warnings"] = list(sol.warnings)
+    io.write_json(out / "summary.json", summary)
+    return summary

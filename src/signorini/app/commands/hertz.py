@@ -1,0 +1,189 @@
+"""``signorini hertz``: the frictionless plane-strain Hertz benchmark (paper 5.1),
+solved with DDM sensitivities, checked against the analytical solution and
+central differences, written as contact.csv, summary.json, figures and VTU."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...algorithms.newton import NewtonOptions
+from ...design.finite_differences import finite_difference
+from ...model import checks
+from ...post import files as io, plots
+from ...problems.hertz import (
+    DEFAULTS, analytical, coarse_start_for, coarse_start_skipped, fine_cell_size, hertz_problem,
+    pressure, pressure_dR)
+from ..options import (
+    UNITS, Formatter, coarse_start_option, common_options, finish, fmt_coarse, fmt_fd, nominal_a0,
+    parse_sets)
+from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
+
+NAME = "hertz"
+
+
+HERTZ_SET = {
+    "E": "Young's modulus [N/mm²], default 100",
+    "nu": "Poisson's ratio, default 0.3",
+    "P": "load per unit thickness [N/mm], default 1.2",
+    "R": "cylinder radius [mm], default 1",
+    "eps": "augmentation/penalty parameter [N/mm³], default E0/h (nominal E0, contact cell h)",
+    "bump": "shape parameter: amplitude of a crown on the top face [mm], default 0",
+}
+
+def add_parser(sub) -> None:
+    """Add this command's sub-parser to ``sub``."""
+    h = sub.add_parser(
+        "hertz", formatter_class=Formatter, help="frictionless plane-strain Hertz benchmark (paper 5.1)",
+        description="Rigid cylinder (radius R) pressed with P per unit thickness onto an elastic "
+                    "block; symmetric half model, held only by the contact. Writes contact.csv "
+                    "(pressure and its DDM sensitivities to R, E, P), summary.json (p0 and a vs "
+                    "the analytical solution, Newton log, DDM vs FD), pressure.png, "
+                    "sensitivity.png and hertz.vtu. " + UNITS)
+    common_options(h, HERTZ_SET, 1, "number of equal load increments", nominal_a0("hertz"))
+    h.add_argument("--method", choices=["al", "penalty"], default="al",
+                   help="contact method: augmented Lagrangian (exact) or penalty (comparator)")
+    coarse_start_option(h)
+
+
+def execute(args) -> int:
+    """Run the command for parsed ``args``; the exit code."""
+    params = parse_sets(args.set, HERTZ_SET)
+    s = run(args.out, params, refine=args.refine, method=args.method,
+                  finite_strain=args.finite_strain, steps=args.steps, fd_check=not args.no_fd,
+                  solver=args.solver, size=args.block, zone=args.zone_width,
+                  force_size=args.force_size, coarse_start=not args.no_coarse_start)
+    print(f"Hertz ({args.method}, {s['mesh']['dofs']} DOFs): p0 = {s['p0']['computed']:.5g} "
+          f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
+          f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
+          f"Newton iterations {s['newton_iterations']}{fmt_coarse(s['coarse_start'])}; "
+          f"DDM vs FD (max rel. diff.): {fmt_fd(s['ddm_vs_fd_rel_diff'])}; "
+          f"solver {s['solver']}")
+    return finish(args, s)
+
+
+#: Hertz's half-space solution assumes a small contact zone, a << R
+VALID_A_OVER_R = 0.3
+
+
+def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
+        finite_strain: bool = False, steps: int = 1, fd_check: bool = True,
+        sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4, solver="auto",
+        size: float = 20.0, zone: float = 1.5, force_size: bool = False,
+        coarse_start: bool = True) -> dict:
+    """Solve the Hertz benchmark with DDM sensitivities and write the results.
+
+    Writes ``contact.csv``, ``summary.json``, ``pressure.png``,
+    ``sensitivity.png`` and ``hertz.vtu`` (``hertz.pvd`` + one VTU per
+    increment when ``steps > 1``) into ``out``. Returns the summary. On a
+    Newton failure the converged increments and ``summary.json`` (status
+    ``failed``, the reason) are written before the error is re-raised.
+
+    ``coarse_start``: the first increment's Newton starts from the solution of
+    the coarser meshes of :func:`coarse_levels`, interpolated; the
+    finite-difference re-solves start from the converged base solution. Only
+    the first iterate changes, not the result.
+    """
+
+    clock = Timer()
+    out = prepare_output(out)
+    options = options or NewtonOptions(rtol=1e-11)
+    solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
+    sensitivities = list(sensitivities)
+    pb = hertz_problem(params, refine=refine, method=method, finite_strain=finite_strain, size=size,
+                       zone=zone, force_size=force_size)
+    v = pb.params
+    an = analytical(v["P"], v["R"], v["E"], v["nu"])
+    mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": fine_cell_size(pb),
+                 "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
+    t0 = clock()
+    guide, levels = None, []
+    skipped = coarse_start_skipped(pb, coarse_start)
+    if skipped is None:
+        guide, levels = coarse_start_for(
+            pb, lambda r, n: hertz_problem(params, refine=r, n_fine=n, method=method,
+                                           finite_strain=finite_strain, size=size, zone=zone),
+            refine, 24, steps=steps, options=options, solver=solver)
+    sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
+                          sensitivities=sensitivities, options=options, solver=solver,
+                          guide=guide)
+    t_solve = clock() - t0
+    c = sol.contact()
+    x = c["x_ref"][:, 0]
+    closed = c["p_N"] > 0
+    a_fe = float(x[closed].max()) if closed.any() else 0.0
+    p0_fe = float(c["p_N"].max())
+    _validity(sol, a_fe, v, pb, zone * analytical(**{k: DEFAULTS[k] for k in ("P", "R", "E", "nu")})["a"],
+              checks)
+
+    cols = {"x_ref": x, "x": c["x"][:, 0], "p_N": c["p_N"]}
+    for n in sensitivities:
+        cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
+    io.write_csv(out / "contact.csv", cols)
+    io.write_vtu(sol, out / "hertz.vtu")
+    if steps > 1:
+        io.write_pvd(sol, out / "hertz.pvd")
+
+    ddm_fd = {}
+    if fd_check:
+        inner = x < 0.9 * an["a"]  # p_N is not differentiable at x = a
+        for n in sensitivities:
+            fd = finite_difference(pb, n, lambda s: s.contact()["p_N"][inner], steps=steps,
+                                   options=options, rel_step=fd_step, solver=solver,
+                                   guide=sol if coarse_start else None)
+            ddm_fd[n] = max_rel_diff(c[f"dp_N_d{n}"][inner], fd)
+
+    xa = np.linspace(0, 1.5 * an["a"], 400)
+    plots.curves(out / "pressure.png", [
+        {"x": xa, "y": pressure(xa, v["P"], v["R"], v["E"], v["nu"]), "label": "Hertz (eq. 22)"},
+        {"x": x, "y": c["p_N"], "label": f"FE, {method}", "style": "points"}],
+        xlabel="x [mm]", ylabel="p_N [N/mm²]", title="Frictionless Hertz: contact pressure",
+        xlim=(0, 1.5 * an["a"]))
+    if "R" in sensitivities:
+        xs = np.linspace(0, 0.995 * an["a"], 400)
+        plots.curves(out / "sensitivity.png", [
+            {"x": np.concatenate([xs, [an["a"], 1.5 * an["a"]]]),
+             "y": np.concatenate([pressure_dR(xs, v["P"], v["R"], v["E"], v["nu"]), [0, 0]]),
+             "label": "analytical"},
+            {"x": x, "y": c["dp_N_dR"], "label": "FE, DDM", "style": "points"}],
+            xlabel="x [mm]", ylabel="Dp_N/DR [N/mm³]",
+            title="Sensitivity of the pressure to the cylinder radius", xlim=(0, 1.5 * an["a"]))
+
+    summary = summary_header("converged", sol)
+    summary.update({
+        "params": v,
+        "method": method,
+        "finite_strain": finite_strain,
+        "steps": steps,
+        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
+        "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
+        "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
+        "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,
+              "error_in_cells": (a_fe - an["a"]) / fine_cell_size(pb)},
+        "newton_iterations": sol.newton_iterations,
+        "newton_residuals": [inc.newton.residuals for inc in sol.increments],
+        "coarse_start": levels if levels else (skipped or "no coarser mesh"),
+        "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
+        "fd_relative_step": fd_step,
+        "time_solve_s": t_solve,
+        "time_wall_s": clock(),
+    })
+    summary["warnings"] = list(sol.warnings)
+    io.write_json(out / "summary.json", summary)
+    return summary
+
+
+def _validity(sol, a_fe: float, v: dict, pb, zone_width: float, checks) -> None:
+    """Warn when the computed contact zone leaves the model's range of validity."""
+    if a_fe > VALID_A_OVER_R * v["R"]:
+        checks.warn(sol, f"the contact half-width a = {a_fe:.4g} exceeds {VALID_A_OVER_R} R = "
+                         f"{VALID_A_OVER_R * v['R']:.4g}: Hertz's half-space solution (and the "
+                         "comparison with it) assumes a << R; reduce the load P or increase R")
+    W = float(pb.mesh.nodes[:, 0].max())
+    if a_fe > 0.25 * W:
+        checks.warn(sol, f"the contact zone (a = {a_fe:.4g}) reaches {a_fe / W:.0%} of the block "
+                         f"width {W:.4g}, so the block is no longer a half-space; use a larger "
+                         "block (--block)")
+    if a_fe > zone_width:
+        checks.warn(sol, f"the contact zone (a = {a_fe:.4g}) extends beyond the fine mesh zone "
+                         f"({zone_width:.4g}), where the cells grow; widen it (--zone-width) or "
+                         "change the nominal sizes")

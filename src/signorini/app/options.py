@@ -1,0 +1,185 @@
+"""What the commands share: argument types and option groups, the ``--set``
+parser, and the lines every command prints at the end."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..errors import InputError
+from ..params import parse_assignment
+from ..problems import hertz, hertz_friction
+
+UNITS = "Units: mm, N/mm (force per unit thickness), N/mm² (MPa)."
+
+
+class Formatter(argparse.HelpFormatter):
+    """Shows '(default: X)' only where there is a meaningful default."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        d = action.default
+        if (d not in (None, False, [], argparse.SUPPRESS) and "%(default)" not in text
+                and action.option_strings):
+            text += " (default: %(default)s)"
+        return text
+
+
+def whole_number(least: int):
+    """argparse type: a whole number >= least, with a message that says so."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if v < least:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {least}, got {text!r}")
+        return v
+    return parse
+
+
+positive_int = whole_number(1)
+nonneg_int = whole_number(0)
+
+
+def positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return v
+
+
+def parse_sets(items: list[str], allowed: dict) -> dict:
+    """``--set NAME=VALUE`` items -> {name: float}; unknown, repeated, non-numeric
+    or non-finite values are errors that name the item."""
+    out: dict[str, float] = {}
+    for text in items:
+        name, value = parse_assignment(text)
+        if name not in allowed:
+            raise InputError(f"--set {text}: unknown parameter {name!r}; this command accepts "
+                             f"{', '.join(allowed)}")
+        if name in out:
+            raise InputError(f"--set {name} is given twice ({out[name]:g} and {value:g}); give "
+                             "each parameter once")
+        if value != value or abs(value) == float("inf"):
+            raise InputError(f"--set {text}: the value must be a finite number")
+        out[name] = value
+    return out
+
+
+def set_help(allowed: dict) -> str:
+    first = next(iter(allowed))
+    return (f"set a named parameter (repeatable), e.g. --set {first}=1.5. Names: " +
+            "; ".join(f"{k} = {v}" for k, v in allowed.items()) + ". The mesh never changes with "
+            "these values (it is built from the defaults and the mesh options), so finite "
+            "differences of two runs equal the printed DDM sensitivities.")
+
+
+def common_options(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: str, a0: float,
+            block: float = 20.0):
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (created if needed; must be writable)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help=set_help(allowed))
+    p.add_argument("--refine", type=nonneg_int, default=0, metavar="N",
+                   help="halve every cell N times (each level: 4x the unknowns)")
+    p.add_argument("--block", type=positive_float, default=block, metavar="B",
+                   help=f"block width and depth, in units of the nominal contact half-width a0 "
+                        f"(a0 = {a0:.4g} mm: Hertz's half-width at the default parameters)")
+    p.add_argument("--zone-width", type=positive_float, default=1.5, metavar="Z",
+                   help="width of the uniformly fine mesh zone at the contact, in units of a0")
+    p.add_argument("--steps", type=positive_int, default=steps, metavar="N", help=steps_help)
+    p.add_argument("--finite-strain", action="store_true",
+                   help="neo-Hookean block with finite contact kinematics (default: linear "
+                        "elasticity, linearised contact kinematics as in Hertz's theory)")
+    p.add_argument("--no-fd", action="store_true",
+                   help="skip the check of the DDM sensitivities by central finite differences "
+                        "(saves two re-solves per parameter)")
+    solver_options(p)
+
+
+def forging_mesh_options(p):
+    p.add_argument("--mesh", default="10x20", metavar="NRxNZ",
+                   help="cells in the radial and axial directions")
+    p.add_argument("--steps", type=positive_int, default=50, metavar="N",
+                   help="equal increments of the die stroke in every forging solve")
+
+
+def dask_options(p):
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of an existing Dask scheduler (default: a local cluster)")
+    g.add_argument("--sequential", action="store_true", help="run the tasks here, one after another")
+    p.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                   help="workers of the local cluster (default: the number of cores)")
+
+
+def adjoint_option(p, response: str):
+    p.add_argument("--adjoint", action="store_true",
+                   help=f"also compute the adjoint gradient of {response} (one backward pass "
+                        "over the increments) with respect to the same parameters and every "
+                        "nodal coordinate; written next to the DDM gradient in summary.json "
+                        "('adjoint'), shape_gradient.csv and the VTU field adjoint_shape_gradient")
+
+
+def coarse_start_option(p):
+    p.add_argument("--no-coarse-start", action="store_true",
+                   help="start Newton from the undeformed state (later increments from the "
+                        "extrapolating predictor) instead of from coarser meshes solved along the "
+                        "same load path, interpolated (the result is the same)")
+
+
+def solver_options(p):
+    p.add_argument("--solver", default="auto", choices=["auto", "pardiso", "superlu", "umfpack"],
+                   help="sparse direct solver; auto (default) = the fastest installed: pardiso "
+                        "(MKL, installed with signorini on x86-64), else superlu (SciPy)")
+    p.add_argument("--force-size", action="store_true",
+                   help="run even if the estimated memory exceeds what is available")
+    v = p.add_mutually_exclusive_group()
+    v.add_argument("-q", "--quiet", action="store_true", help="print only errors and the result line")
+    v.add_argument("-v", "--verbose", action="store_true",
+                   help="log every increment and Newton iteration instead of progress bars")
+
+
+def nominal_a0(name: str) -> float:
+    d = {"hertz": hertz.DEFAULTS, "hertz_friction": hertz_friction.DEFAULTS}[name]
+    return float(hertz.analytical(d["P"], d["R"], d["E"], d["nu"])["a"])
+
+
+def fmt_coarse(levels) -> str:
+    """' (guided by 1705 DOFs: 6 it, 3634 DOFs: 1 it)' for a coarse-to-fine start."""
+    if not isinstance(levels, list) or not levels or "dofs" not in levels[0]:
+        return ""
+    return " (guided by " + ", ".join(
+        f"{lv['dofs']} DOFs: {sum(lv['newton_iterations'])} it" for lv in levels) + ")"
+
+
+def print_adjoint(s):
+    a = s.get("adjoint")
+    if not isinstance(a, dict):
+        return
+    print(f"adjoint gradient of {a['response']}: value {a['value']:.6g}, one backward pass in "
+          f"{a['time_backward_s']:.2f} s (shape gradient of all nodes in shape_gradient.csv)")
+    print(f"{'parameter':>10} {'DDM':>14} {'adjoint':>14} {'rel. diff.':>10}")
+    for n, d in a["ddm"].items():
+        print(f"{n:>10} {d:14.6e} {a['adjoint'][n]:14.6e} {a['adjoint_vs_ddm_rel_diff'][n]:10.1e}")
+
+
+def fmt_fd(d) -> str:
+    if not isinstance(d, dict):
+        return "not computed (--no-fd)"
+    return ", ".join(f"{k} {v:.1e}" for k, v in d.items())
+
+
+
+
+def finish(args, summary: dict) -> int:
+    """The warnings of a run (also in summary.json) and where its files are; exit code 0."""
+    if summary.get("warnings"):
+        print(f"{len(summary['warnings'])} warning(s), also in summary.json:", file=sys.stderr)
+        for w in summary["warnings"]:
+            print(f"  - {w}", file=sys.stderr)
+    print(f"results in {args.out.rstrip('/')}/")
+    return 0

@@ -1,0 +1,24 @@
+"""The interface every backend implements."""
+
+from __future__ import annotations
+
+import logging
+
+import scipy.sparse as sp
+
+
+log = logging.getLogger("signorini")
+
+from .factor import Factor
+
+
+class LinearSolver:
+    """Base class: ``factorize(K, symmetric=False) -> Factor``."""
+
+    name = "?"
+
+    def factorize(self, K: sp.spmatrix, symmetric: bool = False) -> Factor:
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        return self.name
