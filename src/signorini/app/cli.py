@@ -40,7 +40,7 @@ def _configure_logging(args) -> None:
     logging.basicConfig(level=logging.WARNING, format="%(message)s", stream=sys.stderr, force=True)
     level = logging.WARNING if args.quiet else (logging.DEBUG if args.verbose else logging.INFO)
     logging.getLogger("signorini").setLevel(level)
-    warnings.simplefilter("ignore", SignoriniWarning)  # already logged once
+    warnings.simplefilter("ignore", SignoriniWarning)  # logged (at INFO) and listed at the end
 
 
 class _OnceFilter(logging.Filter):
@@ -51,10 +51,10 @@ class _OnceFilter(logging.Filter):
         self.seen = set()
 
     def filter(self, record):
-        if record.levelno != logging.WARNING:
-            return True
         text = record.getMessage()
-        key = text.split("]: ", 1)[-1] if text.startswith("warning [") else text
+        if not text.startswith("warning"):
+            return True
+        key = text.split(": ", 1)[-1]  # "warning: X" and "warning [FD R+]: X" alike
         if key in self.seen:
             return False
         self.seen.add(key)

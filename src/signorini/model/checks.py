@@ -41,7 +41,7 @@ _SILENT = contextvars.ContextVar("signorini_checks_silent", default=False)
 @contextlib.contextmanager
 def silenced():
     """Keep warnings in ``solution.warnings`` only, without logging or raising them
-    (the auxiliary coarse solves of :mod:`signorini.multilevel`)."""
+    (the auxiliary coarse solves of :mod:`signorini.algorithms.coarse_to_fine`)."""
     token = _SILENT.set(True)
     try:
         yield
@@ -50,15 +50,17 @@ def silenced():
 
 
 def warn(solution, message: str) -> None:
-    """Log ``message``, raise it as a :class:`SignoriniWarning` and keep it in
-    ``solution.warnings`` (once)."""
+    """Keep ``message`` in ``solution.warnings`` and raise it as a
+    :class:`SignoriniWarning` (once per solution). A library user hears of it
+    through :mod:`warnings`, which they can filter; the log gets it at INFO (the
+    ``signorini`` command shows INFO, so its user sees it there too)."""
     if message in solution.warnings:
         return
     solution.warnings.append(message)
     if _SILENT.get():
         return
     label = getattr(solution, "label", None)
-    log.warning("warning%s: %s", f" [{label}]" if label else "", message)
+    log.info("warning%s: %s", f" [{label}]" if label else "", message)
     warnings.warn(message, SignoriniWarning, stacklevel=3)
 
 
