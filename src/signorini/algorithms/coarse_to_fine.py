@@ -57,7 +57,7 @@ def prolong(coarse: Solution, fine: Problem, increment: int = 0) -> np.ndarray:
     return Prolongation.between(coarse.model, model_for(fine))(coarse.increments[increment].w)
 
 
-def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensitivities=(),
+def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
                          whole_path: bool = True, **solve_kwargs) -> tuple[Solution, list[dict]]:
     """Solve ``problems`` (coarse to fine, same physics and load steps), each
     guided by the one before (``solve(..., guide=...)``): its first increment
@@ -89,7 +89,7 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, sensiti
         done: list = []
         try:
             with contextlib.nullcontext() if last else checks.silenced():
-                sol = solve(pb, steps=steps, sensitivities=sensitivities if last else (),
+                sol = solve(pb, steps=steps, wrt=wrt if last else (),
                             guide=sol, label=label if last else f"level {k}", **kw)
             done = list(sol.newton_iterations)
         except ConvergenceError as e:

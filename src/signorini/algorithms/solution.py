@@ -28,11 +28,11 @@ class Increment:
         sens: parameter name -> dw/dphi (n_dof,).
         timing: DDM timings (factorisation, pseudo-load, back-substitution) in s.
         state: history data after the increment (path-dependent problems; None
-            between checkpoints of ``solve(checkpoint=k)``, recomputed on demand).
+            between checkpoints of ``solve(method=Adjoint(checkpoint=k))``, recomputed on demand).
         state_sens: its sensitivities.
         switches: points on a switch of the contact or plasticity law
             (:mod:`signorini.sensitivity.nonsmooth`).
-        factor: the converged tangent's factorisation (``solve(keep_factors=True)``).
+        factor: the converged tangent's factorisation (``solve(method=Adjoint(factors="store"))``).
     """
     t: float
     w: np.ndarray
@@ -154,7 +154,7 @@ class Solution:
 
     def state_after(self, n: int):
         """History state after increment n, replayed by ``model.update`` from the
-        last kept state before it when ``solve(checkpoint=k)`` dropped it."""
+        last kept state before it when ``solve(method=Adjoint(checkpoint=k))`` dropped it."""
         self._inc(n)
         n = range(len(self.increments))[n]  # a negative index counts from the end
         inc = self.increments[n]
@@ -164,7 +164,7 @@ class Solution:
 
     def replay(self, n: int) -> dict:
         """{k: state after increment k} for the increments from the last kept state
-        before n up to n (the dropped segment of ``solve(checkpoint=k)`` that ends
+        before n up to n (the dropped segment of ``solve(method=Adjoint(checkpoint=k))`` that ends
         at n), recomputed by ``model.update`` from the stored unknowns."""
         j = n
         while j >= 0 and self.increments[j].state is None:

@@ -23,6 +23,7 @@ import numpy as np
 
 from .._jax import to_device
 from .._memo import ObjectMemo
+from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
 from ..linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
 from ..model.kernels import Model
@@ -32,7 +33,8 @@ from ..params import as_jax, check_names
 from ..progress import SolveProgress
 from ..model.problem import Problem
 from ..sensitivity import nonsmooth
-from ..sensitivity.ddm import DDM
+from ..sensitivity.ddm import DDM as DDMEngine
+from ..sensitivity.methods import DDM, Adjoint, check_method
 from .prolongation import Prolongation
 from .solution import Increment, Solution
 
@@ -129,28 +131,32 @@ def model_for(problem: Problem) -> Model:
     return m
 
 
-def ddm_for(model: Model, names: Sequence[str]) -> DDM | None:
+def ddm_for(model: Model, names: Sequence[str]) -> DDMEngine | None:
     """The model's compiled DDM for these parameter names (None if there are none)."""
     if not names:
         return None
     key = ("ddm", tuple(names))
     if key not in model.cache:
-        model.cache[key] = DDM(model, names)
+        model.cache[key] = DDMEngine(model, names)
     return model.cache[key]
 
 
-def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
+def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=None,
           options: NewtonOptions = NewtonOptions(), solver="auto", label: str | None = None,
-          initial=None, ddm_factorization: str = "exact", until: float = 1.0,
-          checkpoint: int = 1, keep_factors: bool = False,
-          switch_tol: float = nonsmooth.SWITCH_TOL, guide: Solution | None = None) -> Solution:
+          initial=None, guide: Solution | None = None, until: float = 1.0,
+          switch_tol: float = nonsmooth.SWITCH_TOL, **deprecated) -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
 
     Args:
-        problem: the :class:`~signorini.problem.Problem`.
+        problem: the :class:`~signorini.model.problem.Problem`.
         steps: number of equal load increments from t = 0 to 1 (cut on failure).
-        sensitivities: list of design-parameter names; their DDM sensitivities
-            are computed after every converged increment.
+        wrt: the design parameters to differentiate with respect to (names);
+            their DDM sensitivities are computed after every converged increment.
+        method: :class:`~signorini.DDM` (default; ``DDM(factorization="reuse")``
+            solves with the last Newton factorisation, refined) or
+            :class:`~signorini.Adjoint` (no forward sensitivities: the solve keeps
+            what a later backward pass needs, every ``checkpoint``-th history
+            state and, with ``factors="store"``, every factorisation).
         options: :class:`~signorini.newton.NewtonOptions` (tolerances, iteration
             and step-cutting budgets).
         solver: linear solver: ``"auto"`` (the fastest installed: PARDISO, else
@@ -161,20 +167,9 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
         initial: (n_dof,) first Newton iterate of the first increment (e.g. a coarse
             solution from :func:`signorini.algorithms.coarse_to_fine.prolong`, or a converged solution
             of nearby parameters); only the start changes, not the converged result.
-        ddm_factorization: ``"exact"`` (default): the DDM factorises the converged
-            tangent; ``"reuse"``: it solves with the last Newton factorisation,
-            refined against the converged tangent to the backward error of a fresh
-            solve, and factorises afresh only if that refinement falls short.
         until: stop the load path at this load factor (the increments keep the
             nominal size 1/steps); a coarse-to-fine start solves the coarse meshes
             only to the end of the first increment.
-        checkpoint: keep the history state (friction slip, plastic state) after
-            every ``checkpoint``-th increment and after the last one only; the
-            others are recomputed from the stored unknowns when asked for
-            (:meth:`~signorini.solution.Solution.state_before`): memory for long
-            paths, used by the adjoint (docs/theory.md §11).
-        keep_factors: keep the factorisation of the converged tangent of every
-            increment on it (``Increment.factor``) for an adjoint backward pass.
         switch_tol: relative distance from a switch of the contact or plasticity
             law below which a point is reported on it (``Increment.switches``,
             :mod:`signorini.sensitivity.nonsmooth`); None: no report (the coarse
@@ -199,7 +194,28 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
             differentiable at the parameter values); its ``partial`` attribute
             holds the increments already converged.
         InputError: invalid parameters, names or meshes.
+
+    The keywords of version 0.1 still work, with a DeprecationWarning:
+    ``sensitivities=`` (now ``wrt=``), ``ddm_factorization=`` (``method=DDM(...)``),
+    ``checkpoint=`` and ``keep_factors=`` (``method=Adjoint(...)``).
     """
+    old = pop_old(deprecated, "signorini.solve", {
+        "sensitivities": "wrt=[...]", "ddm_factorization": "method=signorini.DDM(factorization=...)",
+        "checkpoint": "method=signorini.Adjoint(checkpoint=...)",
+        "keep_factors": 'method=signorini.Adjoint(factors="store")'})
+    if "sensitivities" in old:
+        if wrt:
+            raise InputError("give the parameters once, as wrt= (sensitivities= is its old name)")
+        wrt = old["sensitivities"]
+    method = DDM() if method is None else check_method(method, (DDM, Adjoint), "signorini.solve")
+    if isinstance(method, Adjoint) and len(_sensitivity_names(wrt)):
+        raise InputError("solve(method=Adjoint()) computes no forward sensitivities, so wrt= has no "
+                         "use there: for DDM sensitivities use method=DDM(); for an adjoint "
+                         "gradient, signorini.gradient(problem, response, wrt, method=Adjoint())")
+    ddm_factorization = old.get("ddm_factorization",
+                                method.factorization if isinstance(method, DDM) else "exact")
+    checkpoint = old.get("checkpoint", method.checkpoint if isinstance(method, Adjoint) else 1)
+    keep_factors = old.get("keep_factors", isinstance(method, Adjoint) and method.factors == "store")
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"steps must be a positive integer (number of load increments), got {steps!r}")
     if isinstance(checkpoint, bool) or not isinstance(checkpoint, (int, np.integer)) or checkpoint < 1:
@@ -209,7 +225,7 @@ def solve(problem: Problem, *, steps: int = 1, sensitivities: Sequence[str] = ()
         raise InputError(f"switch_tol must be a number in [0, 1) or None (no report), got "
                          f"{switch_tol!r}")
     with openblas_single_thread(), contextlib.ExitStack() as stack:
-        return _solve(problem, steps, sensitivities, options, solver, label, initial,
+        return _solve(problem, steps, wrt, options, solver, label, initial,
                       ddm_factorization, until, int(checkpoint), bool(keep_factors), switch_tol,
                       guide, stack)
 
@@ -240,7 +256,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
     if ddm_factorization not in ("exact", "reuse"):
         raise InputError(f"ddm_factorization must be 'exact' or 'reuse', got {ddm_factorization!r}")
     names = _sensitivity_names(sensitivities)
-    check_names(names, problem.params, "sensitivities")
+    check_names(names, problem.params, "wrt")
     check_finite(problem.params)
     if not isinstance(options, NewtonOptions):
         raise InputError(f"options must be a signorini.NewtonOptions, got {type(options).__name__}")
@@ -479,18 +495,18 @@ def _own_factor(lin: TangentSolver, K):
 
 def _sensitivity_names(sensitivities) -> list[str]:
     if isinstance(sensitivities, str):
-        raise InputError(f"sensitivities must be a list of parameter names, got the string "
-                         f"{sensitivities!r}; write sensitivities=[{sensitivities!r}]")
+        raise InputError(f"wrt must be a list of parameter names, got the string "
+                         f"{sensitivities!r}; write wrt=[{sensitivities!r}]")
     try:
         names = list(sensitivities or ())
     except TypeError:
-        raise InputError(f"sensitivities must be a list of parameter names, got "
+        raise InputError(f"wrt must be a list of parameter names, got "
                          f"{sensitivities!r}") from None
     for n in names:
         if not isinstance(n, str):
-            raise InputError(f"sensitivities must be parameter names (strings), got {n!r}")
+            raise InputError(f"wrt must be parameter names (strings), got {n!r}")
     if len(set(names)) != len(names):
-        raise InputError(f"sensitivities lists a parameter twice: {names}")
+        raise InputError(f"wrt lists a parameter twice: {names}")
     return names
 
 

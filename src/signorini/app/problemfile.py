@@ -813,7 +813,7 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
     t0 = time.perf_counter()
     error = None
     try:
-        sol = solve(problem, steps=cfg.steps, sensitivities=list(cfg.sensitivities),
+        sol = solve(problem, steps=cfg.steps, wrt=list(cfg.sensitivities),
                     options=cfg.options, solver=solver, label="base")
     except SolverError as e:  # ConvergenceError keeps the converged increments in .partial
         error, sol = e, getattr(e, "partial", None)

@@ -25,7 +25,9 @@ from ..model.kernels import NODES
 from ..algorithms.newton import NewtonOptions
 from ..params import as_jax, check_names
 from ..sensitivity import nonsmooth
-from ..sensitivity.adjoint import Adjoint
+from .._deprecation import pop_old
+from ..sensitivity.adjoint import Adjoint as AdjointEngine
+from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, check_method, method_named
 from ..algorithms.stepping import solve, structure_key
 
 MODES = ("ddm", "adjoint", "fd")
@@ -126,64 +128,88 @@ def selected_increments(increments, n: int) -> list[int]:
     return idx
 
 
-def gradient(problem, response, params: Sequence[str], *, mode: str = "adjoint", steps: int = 1,
+def gradient(problem, response, wrt: Sequence[str] | None = None, *, method=None, steps: int = 1,
              increments="last", options: NewtonOptions = NewtonOptions(), solver="auto",
-             fd_step: float = 1e-6, factors: str = "recompute", checkpoint: int = 1,
-             label: str | None = None, solution=None) -> Gradient:
+             label: str | None = None, solution=None, **deprecated) -> Gradient:
     """Gradient of G = sum over increments of response(w_n, params, t_n, state_{n-1}).
 
     Args:
-        problem: the :class:`~signorini.problem.Problem` at the design point.
+        problem: the :class:`~signorini.model.problem.Problem` at the design point.
         response: ``fn(w, params, t)`` or ``fn(w, params, t, state_n)`` returning a
             scalar (JAX-traceable; state_n: the state before the increment), or a
             factory ``G(model) -> fn``.
-        params: parameter names; ``"nodes"`` (adjoint only) asks for the gradient
-            with respect to every nodal coordinate of the reference mesh.
-        mode: ``"adjoint"`` (default; one backward pass), ``"ddm"`` (one
-            back-substitution per parameter and increment) or ``"fd"`` (central
-            differences, two solves per parameter, step ``fd_step * max(|phi|, 1)``).
+        wrt: the parameters to differentiate with respect to (names); ``"nodes"``
+            (adjoint only) asks for the gradient with respect to every nodal
+            coordinate of the reference mesh.
+        method: :class:`~signorini.Adjoint` (default; one backward pass; its
+            ``factors`` and ``checkpoint`` trade memory for time),
+            :class:`~signorini.DDM` (one back-substitution per parameter and
+            increment) or :class:`~signorini.FiniteDifferences` (central
+            differences, two solves per parameter).
         steps: load increments (as :func:`signorini.solve`).
         increments: ``"last"`` (default), ``"all"`` (sum over every increment) or
             a list of increment indices.
-        factors: adjoint: ``"recompute"`` (default: the backward pass factorises
-            each increment's converged tangent again; memory: unknowns and states
-            only) or ``"store"`` (the forward pass keeps every factorisation).
-        checkpoint: adjoint: keep the history state of every k-th increment only
-            (the others are recomputed from the unknowns in the backward pass).
         solution: adjoint: a converged solution of this problem to run the backward
             pass on (no forward solve; it must hold every increment's state or
             be replayable).
 
     Returns:
         A :class:`Gradient`.
+
+    The keywords of version 0.1 still work, with a DeprecationWarning:
+    ``params=`` (now ``wrt=``), ``mode=``, ``fd_step=``, ``factors=`` and
+    ``checkpoint=`` (now ``method=``).
     """
-    if mode not in MODES:
-        raise InputError(f"mode must be one of {MODES}, got {mode!r}")
-    if isinstance(params, str):
-        raise InputError(f"params must be a list of parameter names, got the string {params!r}; "
-                         f"write [{params!r}]")
-    names = list(params)
+    old = pop_old(deprecated, "signorini.gradient", {
+        "params": "wrt=[...]", "mode": "method=signorini.DDM(), Adjoint() or FiniteDifferences()",
+        "fd_step": "method=signorini.FiniteDifferences(rel_step=...)",
+        "factors": "method=signorini.Adjoint(factors=...)",
+        "checkpoint": "method=signorini.Adjoint(checkpoint=...)"})
+    if "params" in old:
+        if wrt is not None:
+            raise InputError("give the parameters once, as wrt= (params= is its old name)")
+        wrt = old.pop("params")
+    method = _method(method, old)
+    if wrt is None:
+        raise InputError("gradient needs the parameters to differentiate with respect to: wrt=[...]")
+    if isinstance(wrt, str):
+        raise InputError(f"wrt must be a list of parameter names, got the string {wrt!r}; "
+                         f"write [{wrt!r}]")
+    names = list(wrt)
     if not names:
         raise InputError("gradient needs at least one parameter name")
     if len(set(names)) != len(names):
-        raise InputError(f"params lists a parameter twice: {names}")
-    check_names([n for n in names if n != NODES], problem.params, "params")
-    if NODES in names and mode != "adjoint":
+        raise InputError(f"wrt lists a parameter twice: {names}")
+    check_names([n for n in names if n != NODES], problem.params, "wrt")
+    if NODES in names and not isinstance(method, Adjoint):
         raise InputError(f"the gradient with respect to {NODES!r} (every nodal coordinate) is "
-                         f"computed by mode='adjoint' only; for a check by finite differences or "
+                         f"computed by method=Adjoint() only; for a check by finite differences or "
                          "DDM, move a node with a shape parameter (Problem(shape=...))")
-    if not (isinstance(fd_step, (int, float)) and not isinstance(fd_step, bool) and fd_step > 0):
-        raise InputError(f"fd_step must be a positive number, got {fd_step!r}")
-    if mode != "adjoint" and (solution is not None or checkpoint != 1 or factors != "recompute"):
-        raise InputError("solution=, checkpoint= and factors= belong to mode='adjoint'")
-    if factors not in ("recompute", "store"):
-        raise InputError(f"factors must be 'recompute' or 'store', got {factors!r}")
-    if mode == "adjoint":
-        return _adjoint(problem, response, names, steps, increments, options, solver, factors,
-                        checkpoint, label, solution)
-    if mode == "ddm":
+    if solution is not None and not isinstance(method, Adjoint):
+        raise InputError("solution= belongs to method=Adjoint() (a backward pass on a given solve)")
+    if isinstance(method, Adjoint):
+        return _adjoint(problem, response, names, steps, increments, options, solver, method,
+                        label, solution)
+    if isinstance(method, DDM):
         return _ddm(problem, response, names, steps, increments, options, solver, label)
-    return _fd(problem, response, names, steps, increments, options, solver, fd_step, label)
+    return _fd(problem, response, names, steps, increments, options, solver, method, label)
+
+
+def _method(method, old: dict):
+    """The method object, from ``method=`` or from the 0.1 keywords (never both)."""
+    if method is not None:
+        if old:
+            raise InputError(f"give the method once, as method= ({', '.join(sorted(old))}= are its "
+                             "old spellings)")
+        return check_method(method, (DDM, Adjoint, FiniteDifferences), "signorini.gradient")
+    mode = old.get("mode", "adjoint")
+    if mode not in MODES:
+        raise InputError(f"mode must be one of {MODES}, got {mode!r}")
+    if mode != "adjoint" and ("checkpoint" in old or "factors" in old):
+        raise InputError("checkpoint= and factors= belong to the adjoint")
+    kw = {"adjoint": {k: old[k] for k in ("factors", "checkpoint") if k in old},
+          "fd": {"rel_step": old["fd_step"]} if "fd_step" in old else {}, "ddm": {}}[mode]
+    return method_named(mode, **kw)
 
 
 def _value(sol, fn, idx, key) -> float:
@@ -192,7 +218,7 @@ def _value(sol, fn, idx, key) -> float:
 
 def _ddm(problem, response, names, steps, increments, options, solver, label) -> Gradient:
     t0 = time.perf_counter()
-    sol = solve(problem, steps=steps, sensitivities=names, options=options, solver=solver, label=label)
+    sol = solve(problem, steps=steps, wrt=names, options=options, solver=solver, label=label)
     t1 = time.perf_counter()
     fn = response_function(response, sol.model)
     idx = selected_increments(increments, len(sol.increments))
@@ -211,7 +237,7 @@ def _ddm(problem, response, names, steps, increments, options, solver, label) ->
                                           time.perf_counter() - t1}, {}, list(sol.warnings))
 
 
-def _fd(problem, response, names, steps, increments, options, solver, fd_step, label) -> Gradient:
+def _fd(problem, response, names, steps, increments, options, solver, method, label) -> Gradient:
     t0 = time.perf_counter()
     sol = solve(problem, steps=steps, options=options, solver=solver, label=label)
     t1 = time.perf_counter()
@@ -225,7 +251,7 @@ def _fd(problem, response, names, steps, increments, options, solver, fd_step, l
     grad = {}
     for n in names:
         base = problem.params[n]
-        h = fd_step * max(abs(base), 1.0)
+        h = method.step_for(base)
         vals = [value(solve(problem.with_params(**{n: base + sgn * h}), steps=steps, options=options,
                             solver=solver, label=f"FD {n}{'+' if sgn > 0 else '-'}"))
                 for sgn in (1, -1)]
@@ -234,12 +260,11 @@ def _fd(problem, response, names, steps, increments, options, solver, fd_step, l
                     {}, list(sol.warnings))
 
 
-def _adjoint(problem, response, names, steps, increments, options, solver, factors, checkpoint,
-             label, sol) -> Gradient:
+def _adjoint(problem, response, names, steps, increments, options, solver, method, label,
+             sol) -> Gradient:
     t0 = time.perf_counter()
     if sol is None:
-        sol = solve(problem, steps=steps, options=options, solver=solver, label=label,
-                    checkpoint=checkpoint, keep_factors=factors == "store")
+        sol = solve(problem, steps=steps, options=options, solver=solver, label=label, method=method)
     else:
         _check_solution(sol, problem, steps)
     t1 = time.perf_counter()
@@ -280,7 +305,7 @@ def adjoint_gradient(solution, response, names: Sequence[str], *, increments="la
     fn = response_function(response, m)
     key = ("adjoint", response)
     if key not in m.cache:
-        m.cache[key] = Adjoint(m, fn)
+        m.cache[key] = AdjointEngine(m, fn)
         old = [k for k in m.cache if isinstance(k, tuple) and k and k[0] == "adjoint"]
         for k in old[:-MAX_CACHED]:  # a new response object per call must not grow the cache
             del m.cache[k]

@@ -67,7 +67,10 @@ from pathlib import Path
 import numpy as np
 
 import scipy.optimize as so
+
+from .._deprecation import pop_old
 from ..model import checks
+from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, check_method, method_named
 from ..errors import ConvergenceError, InputError, SignoriniWarning, SolverError
 from .gradient import adjoint_gradient, is_factory
 from ..sensitivity import nonsmooth
@@ -156,7 +159,7 @@ class Objective:
         problem: the :class:`~signorini.problem.Problem` at its nominal values;
             a design point x is solved as ``problem.with_params(**dict(zip(names, x)))``
             (same mesh and components, so the compiled model is reused).
-        names: the design parameters (they must be parameters of ``problem``).
+        wrt: the design parameters (they must be parameters of ``problem``).
         response: either a factory ``G(model) -> fn`` (a callable of one argument,
             called once per compiled model, e.g. ``lambda m: forging.objective(m, nodes)``)
             or a ready ``fn(w, params, t)``; ``fn`` must return a scalar and be
@@ -167,11 +170,11 @@ class Objective:
         response_key: key under which the compiled response is cached on the
             model (default: a key unique to this objective).
         increment: which converged increment the response is evaluated at (-1: the last).
-        gradient_mode: ``"ddm"`` (one solve with sensitivities per point), ``"adjoint"``
-            (one solve and one backward pass per point, whatever the number of
-            design parameters: :func:`signorini.gradient.gradient`) or ``"fd"``
-            (central differences of the value: 1 + 2 len(names) solves per gradient).
-        fd_step: relative step of ``"fd"``: h_i = fd_step * max(|x_i|, 1).
+        method: :class:`~signorini.DDM` (default: one solve with sensitivities per
+            point), :class:`~signorini.Adjoint` (one solve and one backward pass per
+            point, whatever the number of design parameters) or
+            :class:`~signorini.FiniteDifferences` (central differences of the value:
+            1 + 2 len(wrt) solves per gradient, step ``step_for(x_i)``).
         failure: ``"penalty"`` (return ``F_fail`` and a gradient pointing back to the
             last good point, see the module docstring) or ``"raise"``.
         failure_value: a fixed ``F_fail`` (default: F_max + 10 max |F| of the good points).
@@ -185,17 +188,43 @@ class Objective:
             instead of overwriting it.
         label: name of the solves in log lines and progress bars.
 
+    The keywords of version 0.1 still work, with a DeprecationWarning: ``names=``
+    (now ``wrt=``), ``gradient_mode=`` and ``fd_step=`` (now ``method=``).
+
     Attributes:
         records: every :class:`Evaluation`, in order.
         warnings: distinct warnings of all solves (also logged once each).
     """
 
-    def __init__(self, problem, names: Sequence[str], response: Callable, *, steps: int = 1,
-                 options: NewtonOptions | None = None, solver="auto", response_key=None,
-                 increment: int = -1, gradient_mode: str = "ddm", fd_step: float = 1e-6,
-                 failure: str = "penalty", failure_value: float | None = None,
-                 validate: Callable | None = None, factory: bool | None = None,
-                 history=None, append: bool = False, label: str = "opt"):
+    def __init__(self, problem, wrt: Sequence[str] | None = None, response: Callable | None = None, *,
+                 method=None, steps: int = 1, options: NewtonOptions | None = None, solver="auto",
+                 response_key=None, increment: int = -1, failure: str = "penalty",
+                 failure_value: float | None = None, validate: Callable | None = None,
+                 factory: bool | None = None, history=None, append: bool = False,
+                 label: str = "opt", **deprecated):
+        old = pop_old(deprecated, "Objective", {
+            "names": "wrt=[...]", "gradient_mode": "method=signorini.DDM(), Adjoint() or "
+            "FiniteDifferences()", "fd_step": "method=signorini.FiniteDifferences(rel_step=...)"})
+        if "names" in old:
+            if wrt is not None:
+                raise InputError("give the design parameters once, as wrt= (names= is its old name)")
+            wrt = old["names"]
+        if wrt is None or response is None:
+            raise InputError("an objective needs the design parameters (wrt) and a response")
+        names = wrt
+        if method is not None:
+            if old.keys() & {"gradient_mode", "fd_step"}:
+                raise InputError("give the method once, as method= (gradient_mode= and fd_step= "
+                                 "are its old spellings)")
+            method = check_method(method, (DDM, Adjoint, FiniteDifferences), "Objective")
+        else:
+            gradient_mode = old.get("gradient_mode", "ddm")
+            if gradient_mode not in ("ddm", "adjoint", "fd"):
+                raise InputError(f"gradient_mode must be 'ddm', 'adjoint' or 'fd', got {gradient_mode!r}")
+            fd_step = old.get("fd_step", 1e-6)
+            if not (isinstance(fd_step, (int, float)) and fd_step > 0):
+                raise InputError(f"fd_step must be a positive number, got {fd_step!r}")
+            method = method_named(gradient_mode, **({"rel_step": fd_step} if gradient_mode == "fd" else {}))
         if isinstance(names, str):
             raise InputError(f"names must be a list of parameter names, got the string {names!r}")
         self.names = [str(n) for n in names]
@@ -204,14 +233,10 @@ class Objective:
         if len(set(self.names)) != len(self.names):
             raise InputError(f"names lists a parameter twice: {self.names}")
         check_names(self.names, problem.params, "the design parameters (names)")
-        if gradient_mode not in ("ddm", "adjoint", "fd"):
-            raise InputError(f"gradient_mode must be 'ddm', 'adjoint' or 'fd', got {gradient_mode!r}")
         if failure not in ("penalty", "raise"):
             raise InputError(f"failure must be 'penalty' or 'raise', got {failure!r}")
         if failure_value is not None and not np.isfinite(failure_value):
             raise InputError(f"failure_value must be a finite number, got {failure_value!r}")
-        if not (isinstance(fd_step, (int, float)) and fd_step > 0):
-            raise InputError(f"fd_step must be a positive number, got {fd_step!r}")
         if not callable(response):
             raise InputError("response must be a callable: fn(w, params, t) or a factory G(model) -> fn")
         self.problem = problem
@@ -221,8 +246,9 @@ class Objective:
         self.options = options if options is not None else NewtonOptions()
         self.solver = solver
         self.increment = increment
-        self.gradient_mode = gradient_mode
-        self.fd_step = float(fd_step)
+        self.method = method
+        #: ``"ddm"``, ``"adjoint"`` or ``"fd"``: the name of ``method``
+        self.gradient_mode = {DDM: "ddm", Adjoint: "adjoint", FiniteDifferences: "fd"}[type(method)]
         self.failure = failure
         self.failure_value = None if failure_value is None else float(failure_value)
         self.validate = validate
@@ -393,7 +419,9 @@ class Objective:
                     self.validate({**self.problem.params, **pvals})
                 pb = self.problem.with_params(**pvals)
                 ddm = with_grad and self.gradient_mode == "ddm"
-                sol = solve(pb, steps=self.steps, sensitivities=names if ddm else (),
+                adjoint = with_grad and isinstance(self.method, Adjoint)
+                sol = solve(pb, steps=self.steps, wrt=names if ddm else (),
+                            method=self.method if ddm or adjoint else DDM(),
                             options=self.options, solver=self.solver, label=self.label)
             except ConvergenceError as e:
                 status, reason, err = "failed", str(e), e
@@ -488,7 +516,7 @@ class Objective:
         """Central differences of the value (one-sided where a perturbed solve fails)."""
         g = np.zeros(len(self.names))
         for i in range(len(self.names)):
-            h = self.fd_step * max(abs(x[i]), 1.0)
+            h = self.method.step_for(x[i])
             xp, xm = x.copy(), x.copy()
             xp[i] += h
             xm[i] -= h

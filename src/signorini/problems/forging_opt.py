@@ -25,6 +25,7 @@ import functools
 import logging
 
 from ..design.optimize import Objective
+from ..sensitivity.methods import method_named
 from . import forging as fg
 
 log = logging.getLogger("signorini")
@@ -54,6 +55,6 @@ def objective_for(mu: float, *, mesh=(10, 20), steps: int = 50, rtol: float = 1e
     pb = base_problem(tuple(mesh)).with_params(mu=float(mu))
     lat = fg.lateral_nodes(pb)
     return Objective(pb, list(fg.SHAPE), lambda model: fg.objective(model, lat), steps=steps,
-                     options=fg.options(rtol), solver=solver, gradient_mode=gradient,
+                     options=fg.options(rtol), solver=solver, method=method_named(gradient),
                      validate=validate, response_key=("forging-opt-F", tuple(lat.tolist())),
                      history=history, append=append, label=label or f"opt mu={mu:g}")

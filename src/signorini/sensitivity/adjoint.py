@@ -41,7 +41,7 @@ ACCURACY = 1e-10
 
 class _Replay:
     """States before each increment for a backward pass: kept ones read, dropped
-    ones (``solve(checkpoint=k)``) replayed once per segment and held until the
+    ones (``solve(method=Adjoint(checkpoint=k))``) replayed once per segment and held until the
     pass leaves it (at most k states at a time)."""
 
     def __init__(self, sol):

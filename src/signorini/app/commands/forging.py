@@ -107,7 +107,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     info = {"n_r": mesh[0], "n_z": mesh[1], "nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells}
     t0 = clock()
     sol = solve_or_report(out, "forging", pb, {"params": v, "mesh": info}, steps=steps,
-                          sensitivities=names, options=opts, solver=solver)
+                          wrt=names, options=opts, solver=solver)
     t_solve = clock() - t0
     model = sol.model
     lat = lateral_nodes(pb)

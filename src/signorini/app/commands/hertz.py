@@ -104,7 +104,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
                                            finite_strain=finite_strain, size=size, zone=zone),
             refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          sensitivities=sensitivities, options=options, solver=solver,
+                          wrt=sensitivities, options=options, solver=solver,
                           guide=guide)
     t_solve = clock() - t0
     c = sol.contact()

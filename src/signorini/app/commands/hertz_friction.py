@@ -112,7 +112,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
                                                     finite_strain=finite_strain),
             refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz_friction", pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          sensitivities=sensitivities, options=options, solver=solver,
+                          wrt=sensitivities, options=options, solver=solver,
                           guide=guide)
     t_solve = clock() - t0
 
