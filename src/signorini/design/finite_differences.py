@@ -10,6 +10,7 @@ from collections.abc import Callable
 
 import numpy as np
 from ..algorithms.stepping import solve
+from ..sensitivity.methods import FiniteDifferences
 
 
 def finite_difference(problem, name: str, quantity: Callable, *, step: float | None = None,
@@ -29,8 +30,8 @@ def finite_difference(problem, name: str, quantity: Callable, *, step: float | N
     """
     problem.with_params(**{name: 0.0})  # raises a clear error for an unknown name
     base = problem.params[name]
-    h = step if step is not None else rel_step * max(abs(base), 1.0)
-    solve_kwargs = {k: v for k, v in solve_kwargs.items() if k not in ("sensitivities", "label")}
+    h = FiniteDifferences(step=step, rel_step=rel_step).step_for(base)
+    solve_kwargs = {k: v for k, v in solve_kwargs.items() if k not in ("sensitivities", "wrt", "method", "label")}
     qp = np.asarray(quantity(solve(problem.with_params(**{name: base + h}), label=f"FD {name}+",
                                    **solve_kwargs)))
     qm = np.asarray(quantity(solve(problem.with_params(**{name: base - h}), label=f"FD {name}-",

@@ -29,6 +29,7 @@ from .._deprecation import pop_old
 from ..sensitivity.adjoint import Adjoint as AdjointEngine
 from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, check_method, method_named
 from ..algorithms.stepping import solve, structure_key
+from .finite_differences import finite_difference
 
 MODES = ("ddm", "adjoint", "fd")
 #: compiled adjoints kept per model (one per response object)
@@ -183,7 +184,7 @@ def gradient(problem, response, wrt: Sequence[str] | None = None, *, method=None
     check_names([n for n in names if n != NODES], problem.params, "wrt")
     if NODES in names and not isinstance(method, Adjoint):
         raise InputError(f"the gradient with respect to {NODES!r} (every nodal coordinate) is "
-                         f"computed by method=Adjoint() only; for a check by finite differences or "
+                         f"computed by the adjoint (method=Adjoint()) only; for a check by finite differences or "
                          "DDM, move a node with a shape parameter (Problem(shape=...))")
     if solution is not None and not isinstance(method, Adjoint):
         raise InputError("solution= belongs to method=Adjoint() (a backward pass on a given solve)")
@@ -248,14 +249,9 @@ def _fd(problem, response, names, steps, increments, options, solver, method, la
         return _value(s, fn, selected_increments(increments, len(s.increments)), key)
 
     G = value(sol)
-    grad = {}
-    for n in names:
-        base = problem.params[n]
-        h = method.step_for(base)
-        vals = [value(solve(problem.with_params(**{n: base + sgn * h}), steps=steps, options=options,
-                            solver=solver, label=f"FD {n}{'+' if sgn > 0 else '-'}"))
-                for sgn in (1, -1)]
-        grad[n] = (vals[0] - vals[1]) / (2 * h)
+    grad = {n: float(finite_difference(problem, n, value, step=method.step_for(problem.params[n]),
+                                       steps=steps, options=options, solver=solver))
+            for n in names}
     return Gradient(G, grad, "fd", sol, {"forward": t1 - t0, "gradient": time.perf_counter() - t1},
                     {}, list(sol.warnings))
 
