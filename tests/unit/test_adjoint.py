@@ -24,6 +24,8 @@ from signorini.contact.obstacles import Circle
 from signorini.model.problem import Problem
 from signorini.problems import forging, hertz, hertz_friction
 
+from helpers import pressed_block
+
 TIGHT = sg.NewtonOptions(rtol=1e-11)
 
 
@@ -281,21 +283,6 @@ def test_cli_optimise_forging_with_adjoint_gradient(tmp_path):
         F[g] = np.array([float(r["F"]) for r in rows])
     assert len(F["adjoint"]) == len(F["ddm"]) >= 3
     assert np.allclose(F["adjoint"], F["ddm"], rtol=1e-9, atol=0)
-
-
-def pressed_block(friction: bool):
-    """A block whose base is moved up by a prescribed displacement d into a cylinder
-    (with friction: a sideways base motion s too): the prescribed values depend on
-    parameters, so their adjoint path (VJP of the prescribed values) is exercised."""
-    from signorini.contact import Coulomb
-
-    mesh = rectangle(np.linspace(0.0, 2.0, 9), np.linspace(-1.0, 0.0, 5))
-    law = Coulomb("mu", "eps", "eps") if friction else AugmentedLagrangian("eps")
-    return Problem(mesh=mesh, material=LinearElastic(),
-                   params={"E": 100.0, "nu": 0.3, "R": 1.0, "d": 0.02, "s": 0.004, "mu": 0.3,
-                           "eps": 400.0},
-                   fixed=(Fixed("bottom", 1, "d"), Fixed("bottom", 0, "s")),
-                   contact=(Contact(Circle(radius="R", centre=(1.0, lambda p: p["R"])), "top", law),))
 
 
 @pytest.mark.parametrize("friction", [False, True])

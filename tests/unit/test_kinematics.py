@@ -1,4 +1,8 @@
-"""Axisymmetric kinematics and the F-bar formulation (docs/theory.md §5.3, §7)."""
+"""Axisymmetric kinematics and the F-bar formulation (signorini.fem.kinematics,
+signorini.fem.element; docs/theory.md §5.3, §7): element tangents for both
+kinematics and formulations, F-bar's one volume change per element, areas and
+loads on surfaces of revolution, a mesh crossing the axis. Lamé's analytical
+cylinder is in tests/validation/test_axisymmetric_lame.py."""
 
 from __future__ import annotations
 
@@ -12,47 +16,6 @@ from signorini.fem.kinematics import AXISYMMETRIC, PLANE_STRAIN, Axisymmetric
 from signorini.params import as_jax
 
 E, NU = 200.0, 0.3
-
-
-def lame_ur(r, a, b, p):
-    """Radial displacement of a thick-walled cylinder (radii a < b) under internal
-    pressure p with u_z = 0 (plane strain along the axis): Lamé's solution
-    u_r = (1 + nu) p a^2 / (E (b^2 - a^2)) ((1 - 2 nu) r + b^2 / r)."""
-    return (1 + NU) * p * a**2 / (E * (b**2 - a**2)) * ((1 - 2 * NU) * r + b**2 / r)
-
-
-def test_thick_cylinder_matches_lame():
-    a, b, p = 1.0, 2.0, 3.0
-    mesh = sg.rectangle(np.linspace(a, b, 17), np.linspace(0.0, 0.25, 3))
-    pb = sg.Problem(mesh, sg.LinearElastic(), {"E": E, "nu": NU, "p": p},
-                    fixed=(sg.Fixed("bottom", 1), sg.Fixed("top", 1)),
-                    loads=(sg.Pressure("left", "p"),), kinematics=Axisymmetric())
-    sol = sg.solve(pb, sensitivities=["p"])
-    R = mesh.nodes[:, 0]
-    ur = sol.displacement()[:, 0]
-    exact = lame_ur(R, a, b, p)
-    err = np.max(np.abs(ur - exact)) / np.max(np.abs(exact))
-    print(f"Lamé: max relative error of u_r on a 16 x 2 mesh: {err:.2e}")
-    assert err < 5e-3
-    assert np.abs(sol.displacement()[:, 1]).max() < 1e-12  # u_z = 0 everywhere
-    # linear problem: Du/Dp = u/p
-    np.testing.assert_allclose(sol.displacement_sensitivity("p"), sol.displacement() / p, atol=1e-14)
-
-
-def test_lame_error_decreases_with_refinement():
-    a, b, p = 1.0, 2.0, 3.0
-    errs = []
-    for n in (4, 8, 16):
-        mesh = sg.rectangle(np.linspace(a, b, n + 1), np.linspace(0.0, 0.25, 3))
-        pb = sg.Problem(mesh, sg.LinearElastic(), {"E": E, "nu": NU},
-                        fixed=(sg.Fixed("bottom", 1), sg.Fixed("top", 1)),
-                        loads=(sg.Pressure("left", p),), kinematics=Axisymmetric())
-        ur = sg.solve(pb).displacement()[:, 0]
-        exact = lame_ur(mesh.nodes[:, 0], a, b, p)
-        errs.append(np.max(np.abs(ur - exact)) / np.max(np.abs(exact)))
-    rates = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
-    print("Lamé errors:", errs, "rates:", rates)
-    assert np.all(rates > 1.5)  # ~2nd order for nodal displacements
 
 
 @pytest.mark.parametrize("formulation", [element.STANDARD, element.FBAR], ids=["standard", "fbar"])

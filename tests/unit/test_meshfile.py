@@ -1,4 +1,6 @@
-"""Mesh input (gmsh via meshio) and result output."""
+"""Mesh input (signorini.fem.meshfile): gmsh and other meshio formats read into
+quadrilateral meshes with named edge and node sets, and clear errors for
+missing, empty, garbage, non-planar or triangle-only files."""
 
 import meshio
 import numpy as np
@@ -51,23 +53,6 @@ def test_read_rejects_triangles(tmp_path):
                 ).write(tmp_path / "t.msh", file_format="gmsh22", binary=False)
     with pytest.raises(sg.InputError, match="no quadrilateral cells"):
         read_mesh(tmp_path / "t.msh")
-
-
-def test_vtu_has_fields_and_sensitivities(tmp_path):
-    from signorini.problems import hertz
-
-    pb = hertz.hertz_problem(n_fine=6, size=8)
-    sol = sg.solve(pb, sensitivities=["R"])
-    sg.io.write_vtu(sol, tmp_path / "r.vtu")
-    back = meshio.read(tmp_path / "r.vtu")
-    for key in ("displacement", "ddisplacement_dR", "p_N", "dp_N_dR", "gap"):
-        assert key in back.point_data, key
-    assert np.allclose(back.point_data["displacement"][:, :2], sol.displacement())
-    c = sol.contact()
-    assert np.allclose(back.point_data["dp_N_dR"][c["node"]], c["dp_N_dR"])
-    stress, dstress = sol.stress()
-    assert np.allclose(back.cell_data["cauchy_stress"][0].reshape(-1, 3, 3), stress)
-    assert np.allclose(back.cell_data["dcauchy_stress_dR"][0].reshape(-1, 3, 3), dstress["R"])
 
 
 # ------------------------------------------------------------- read_mesh errors
@@ -144,35 +129,3 @@ def test_read_drops_orphan_nodes_and_merges_group_blocks(tmp_path):
     mesh.write(tmp_path / "arc.msh", file_format="gmsh22", binary=False)
     with pytest.raises(sg.InputError, match="edge set 'spoke' has nodes that belong to no quadrilateral"):
         read_mesh(tmp_path / "arc.msh")
-
-
-# ------------------------------------------------------------- PVD time series
-
-def test_write_pvd_series(tmp_path):
-    import xml.etree.ElementTree as ET
-
-    m = sg.rectangle(np.linspace(0, 1, 4), np.linspace(0, 1, 4))
-    pb = sg.Problem(m, sg.LinearElastic("E", 0.3), {"E": 100.0, "q": 2.0},
-                    fixed=(sg.Fixed("bottom", 1), sg.Fixed("left", 0)),
-                    loads=(sg.Pressure("top", "q"),))
-    sol = sg.solve(pb, steps=3, sensitivities=["q"])
-    (tmp_path / "series").mkdir()
-    pvd = sg.io.write_pvd(sol, tmp_path / "series" / "run.pvd")
-    assert pvd == tmp_path / "series" / "run.pvd"
-    root = ET.parse(pvd).getroot()
-    assert root.tag == "VTKFile" and root.get("type") == "Collection"
-    ds = root.findall("./Collection/DataSet")
-    assert [float(d.get("timestep")) for d in ds] == pytest.approx([1 / 3, 2 / 3, 1.0])
-    assert [d.get("file") for d in ds] == ["run_0001.vtu", "run_0002.vtu", "run_0003.vtu"]
-    for i, d in enumerate(ds):
-        back = meshio.read(pvd.parent / d.get("file"))
-        assert np.allclose(back.point_data["displacement"][:, :2], sol.displacement(i))
-        assert "ddisplacement_dq" in back.point_data
-    assert sorted(p.name for p in pvd.parent.iterdir()) == [
-        "run.pvd", "run_0001.vtu", "run_0002.vtu", "run_0003.vtu"]
-    # a subset of increments; a bad index is an InputError
-    sg.io.write_pvd(sol, tmp_path / "last.pvd", increments=[-1])
-    ds = ET.parse(tmp_path / "last.pvd").getroot().findall("./Collection/DataSet")
-    assert [(d.get("file"), float(d.get("timestep"))) for d in ds] == [("last_0003.vtu", 1.0)]
-    with pytest.raises(sg.InputError, match="increment 7 does not exist"):
-        sg.io.write_pvd(sol, tmp_path / "bad.pvd", increments=[7])
