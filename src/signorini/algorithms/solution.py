@@ -223,7 +223,7 @@ class Solution:
             out[f"dp_N_d{name}"] = np.asarray(d["p_N"])
             out[f"dp_T_d{name}"] = np.asarray(d["p_T"])
             out[f"dgap_d{name}"] = np.asarray(d["gap"])
-        if hasattr(s.contact.method, "status"):  # friction: open / stick / slip, slip increment
+        if s.contact.method.status is not None:  # friction: open / stick / slip, slip increment
 
             st, gt = m._status(to_device(self._inc(i).w), self._jp, self._inc(i).t,
                                self.state_before(i)[0], surface)

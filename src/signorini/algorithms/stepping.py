@@ -262,7 +262,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         raise InputError(f"options must be a signorini.NewtonOptions, got {type(options).__name__}")
     model = model_for(problem)
     for c in problem.contact:
-        driver = getattr(c.method, "driver", None)  # a law that needs its own solution algorithm
+        driver = c.method.driver  # a law that needs its own solution algorithm
         if driver is not None:
             raise InputError(f"{type(c.method).__name__} is solved by {driver}, not by "
                              "signorini.solve (use AugmentedLagrangian for the single-Newton method)")

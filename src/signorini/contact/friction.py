@@ -48,6 +48,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .._jax import jax, jnp
+from ..interfaces import ContactLawDefaults
 from ..errors import InputError
 from ..params import Spec, resolve
 
@@ -65,7 +66,7 @@ STATUS_NAMES = ("open", "stick", "slip")
 
 
 @dataclass(frozen=True)
-class Coulomb:
+class Coulomb(ContactLawDefaults):
     """Coulomb friction on a rigid obstacle, Alart-Curnier augmented Lagrangian.
 
     Two multipliers per contact node, (lam_N, lam_T). The contact node's slip

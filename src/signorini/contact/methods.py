@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .._jax import jax, jnp
+from ..interfaces import ContactLawDefaults
 from ..errors import InputError
 from ..params import Spec, resolve
 
@@ -28,7 +29,7 @@ def _neg_part(x):
 
 
 @dataclass(frozen=True)
-class _Regularised:
+class _Regularised(ContactLawDefaults):
     """A frictionless method with one regularisation parameter ``eps`` (> 0)."""
 
     eps: Spec = "eps"

@@ -28,7 +28,7 @@ class UzawaPenalty(_Regularised):
     n_multipliers: int = field(default=0, init=False)
     has_history: bool = field(default=True, init=False)
     _what = "Uzawa augmented-Lagrangian"
-    driver = "signorini.uzawa.solve_uzawa"
+    driver = "signorini.algorithms.uzawa.solve_uzawa"
 
     @staticmethod
     def _lam_hat(x, geo, obstacle, cp, hist):

@@ -323,7 +323,7 @@ def element_stress(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formu
     """Cauchy stress (3, 3) averaged over the Gauss points of one element (with
     history: the stress of the update from h_n, i.e. at the end of the increment)."""
     H, w = gauss_gradients(ue, Xe, kinematics, formulation)
-    if getattr(material, "n_state", 0):
+    if material.n_state:
         sig = jax.vmap(lambda h, hs: material.cauchy(h, hs, mp))(H, _history(material, hn))
     else:
         sig = jax.vmap(lambda h: material.cauchy(h, mp))(H)

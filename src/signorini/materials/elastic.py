@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .._jax import jax, jnp
+from ..interfaces import MaterialDefaults
 from ..errors import InputError
 from ..params import Spec, resolve
 
@@ -22,7 +23,7 @@ def det_minus_one(H):
 
 
 @dataclass(frozen=True)
-class _Elastic:
+class _Elastic(MaterialDefaults):
     E: Spec = "E"
     nu: Spec = "nu"
 

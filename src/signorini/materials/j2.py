@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._jax import jax, jnp
+from ..interfaces import MaterialDefaults
 from ..errors import InputError
 from ..params import Spec, resolve
 
@@ -75,7 +76,7 @@ class ReturnMap(NamedTuple):
 
 
 @dataclass(frozen=True)
-class J2Plasticity:
+class J2Plasticity(MaterialDefaults):
     """Simo's multiplicative finite-strain J2 plasticity with linear isotropic hardening.
 
     Stored energy W = U(J) + mu/2 (tr bbar_e - 3), U(J) = kappa/2 [(J^2 - 1)/2 - ln J],

@@ -163,7 +163,7 @@ class IncrementChecks:
                              f"{int(s.nodes[flip[0]])}) passed through the obstacle in increment "
                              f"{n_inc} (t = {t0:.4g} -> {t:.4g}); the result is not physical: use "
                              "more load increments")
-                if getattr(s.contact.method, "has_history", False) and t0 >= COARSE_PATH_FROM - 1e-12:
+                if s.contact.method.has_history and t0 >= COARSE_PATH_FROM - 1e-12:
                     new = int(np.sum(closed1 & ~closed0))
                     if new > MAX_NEW_CONTACT_NODES and closed0.any():
                         warn(self.solution,

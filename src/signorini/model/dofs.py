@@ -116,7 +116,7 @@ class DofLayout:
         identically 0 and the stick row of lam_T zero, docs/theory.md §3.6); None
         for methods without history. "Tangential" = the prescribed component is
         closer to the body's reference tangent than to its normal."""
-        if not getattr(contact.method, "has_history", False):
+        if not contact.method.has_history:
             return None
         N = np.asarray(nodal_normals(X, edges, nodes))
         mask = np.ones(len(nodes))

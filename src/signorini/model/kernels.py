@@ -63,9 +63,9 @@ class Model:
         self.kinematics.check_mesh(p.mesh.nodes)
         self.formulation = p.resolved_formulation()
         self.material = p.material
-        self.n_state = int(getattr(p.material, "n_state", 0))
+        self.n_state = int(p.material.n_state)
         self.load_edges = [p.mesh.edge_set(l.edges) for l in p.loads]
-        finite = getattr(p.material, "finite_strain", True)
+        finite = p.material.finite_strain
         self.linear_contact = [
             c.kinematics == "linear" or (c.kinematics == "auto" and not finite) for c in p.contact]
         self._X0_np = p.mesh.nodes
@@ -77,7 +77,7 @@ class Model:
         # linear elastic body (small strain, standard element): its stiffness does not
         # depend on w, so it is computed once per parameter set and reused by every
         # Newton iteration, which then costs the contact kernels and a block product only
-        self.linear_elements = (bool(getattr(p.material, "linear", False)) and not self.n_state
+        self.linear_elements = (bool(p.material.linear) and not self.n_state
                                 and isinstance(self.formulation, element.Standard))
         self._ke = None  # (element_key, Ke as JAX array, Ke as NumPy array)
         self._element_names = self.element_parameters()  # what Ke depends on (element_key)
@@ -592,13 +592,13 @@ class Model:
             meth = s.contact.method
             f = self.contact_fields(w, params, t, i)
             margin = jnp.full(s.nodes.size, jnp.inf)
-            if hasattr(meth, "stick_margin"):
+            if meth.stick_margin is not None:
                 h = self._node_history(i, state_n)
                 margin = jax.vmap(lambda xs, ls, a, hs, X0, s=s, meth=meth, geo=geo, cp=cp: meth.stick_margin(
                     xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
             out.append({"gap": f["gap"], "p_N": f["p_N"], "stick_margin": margin})
         ratio = None
-        if self.n_state and hasattr(self.material, "yield_ratio"):
+        if self.n_state and self.material.yield_ratio is not None:
             mp = self.material.values(params)
             kin, form, mat = self.kinematics, self.formulation, self.material
             ratio = self._over_cells(lambda ue, Xe, he: element.element_yield_ratio(

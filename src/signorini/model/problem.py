@@ -18,6 +18,7 @@ from ..errors import InputError, UnknownParameterError
 from ..fem.kinematics import PLANE_STRAIN
 from ..fem.mesh import Mesh
 from ..fem.element import FBAR, STANDARD
+from ..interfaces import ContactLaw, ElementFormulation, Kinematics, Material, Obstacle, require
 
 
 @dataclass(frozen=True)
@@ -76,13 +77,20 @@ class Problem:
         object.__setattr__(self, "shape", shape)
         if self.shape_nominal is None:
             object.__setattr__(self, "shape_nominal", {k: self.params[k] for k in shape})
+        require(self.material, Material, "material")
+        require(self.kinematics, Kinematics, "kinematics")
+        if self.formulation is not None:
+            require(self.formulation, ElementFormulation, "element formulation")
+        for c in self.contact:
+            require(c.method, ContactLaw, "contact law")
+            require(c.obstacle, Obstacle, "obstacle")
 
     def resolved_formulation(self):
         """The element formulation used (the default depends on the material)."""
         form = self.formulation
         if form is None:
-            form = FBAR if getattr(self.material, "n_state", 0) else STANDARD
-        if not form.linear and not getattr(self.material, "finite_strain", True):
+            form = FBAR if self.material.n_state else STANDARD
+        if not form.linear and not self.material.finite_strain:
             raise InputError(f"the {form.name} formulation is for finite-strain materials; "
                              f"{type(self.material).__name__} is a small-strain law: use "
                              "formulation=Standard() or a finite-strain material (NeoHooke)")

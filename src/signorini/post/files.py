@@ -62,7 +62,7 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     cell = {"cauchy_stress": [stress.reshape(-1, 9)]}
     for name, d in dstress.items():
         cell[f"dcauchy_stress_d{name}"] = [np.asarray(d).reshape(-1, 9)]
-    alpha = getattr(m.material, "equivalent_plastic_strain", None)
+    alpha = m.material.equivalent_plastic_strain
     state = solution.state_after(range(len(solution.increments))[i])
     if alpha is not None and m.n_state and state is not None:
         # Gauss-point history after the increment, averaged per cell
