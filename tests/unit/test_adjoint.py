@@ -209,7 +209,7 @@ def test_transposed_solves_match_superlu():
     Ks = []
     for i in (0, 2):
         inc = sol.increments[i]
-        _, blocks = m.local_tangents(jnp.asarray(inc.w), sol._jp, inc.t, sol.state_before(i)[0])
+        _, blocks = m.local_tangents(jnp.asarray(inc.w), sol.jax_params, inc.t, sol.state_before(i)[0])
         Ks.append(m.pattern.assemble(blocks))
     b = np.random.default_rng(0).standard_normal(Ks[0].shape[0])
     ref = spla.splu(Ks[1].tocsc()).solve(b, trans="T")

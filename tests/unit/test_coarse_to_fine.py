@@ -156,7 +156,7 @@ def test_prolongation_reproduces_affine_fields():
 
     cm = model_for(hertz_friction_problem(refine=0, n_fine=12))
     fm = model_for(hertz_friction_problem(refine=1))
-    Xc, Xf = np.asarray(cm._X0_np), np.asarray(fm._X0_np)
+    Xc, Xf = np.asarray(cm.reference_nodes), np.asarray(fm.reference_nodes)
     A = np.array([[0.3, -0.2], [0.1, 0.5]])
     wc = np.zeros(cm.n_dof)
     wc[: 2 * cm.n_nodes] = (Xc @ A.T + [1.0, -2.0]).ravel()

@@ -72,8 +72,8 @@ def test_with_params_unknown_name(problem):
 
 
 def test_solve_unknown_sensitivity(problem):
-    with pytest.raises(UnknownParameterError, match=r"unknown parameter 'Q' in sensitivities") as e:
-        sg.solve(problem, sensitivities=["Q"])
+    with pytest.raises(UnknownParameterError, match=r"unknown parameter 'Q' in wrt") as e:
+        sg.solve(problem, wrt=["Q"])
     assert_ours(e)
 
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from signorini.app.commands import hertz_friction as hf_cmd
 from signorini.problems import hertz, hertz_friction as hf
 
 TIGHT = sg.NewtonOptions(rtol=1e-11)
@@ -150,7 +151,7 @@ def test_one_program_tangent_equals_separate_flags_at_increment_starts():
     for prev, inc in zip(sol.increments[:-1], sol.increments[1:]):
         w = to_device(prev.w)
         R, blocks = m.local_tangents(w, p, inc.t, prev.state)
-        cases = m._cases(w, p, inc.t, prev.state)
+        cases = m.compiled.cases(w, p, inc.t, prev.state)
         R2, blocks2 = m._local(w, p, inc.t, prev.state, cases, Ke)
         Kc, Kc2 = blocks[-1], np.asarray(blocks2[-1])
         assert np.max(np.abs(Kc - Kc2)) <= 1e-12 * np.max(np.abs(Kc2))
@@ -293,6 +294,6 @@ def test_errors_are_clear(small):
     with pytest.raises(sg.InputError, match="friction coefficient"):
         sg.solve(pb.with_params(mu=-0.1))
     with pytest.raises(sg.InputError, match="history"):
-        jax.eval_shape(lambda w: sol.model.residual(w, sol._jp, 1.0), jnp.zeros(sol.model.n_dof))
+        jax.eval_shape(lambda w: sol.model.residual(w, sol.jax_params, 1.0), jnp.zeros(sol.model.n_dof))
     with pytest.raises(sg.InputError, match="multiple of 3"):
-        hf.run("/nonexistent/never-written", steps=4)
+        hf_cmd.run("/nonexistent/never-written", steps=4)

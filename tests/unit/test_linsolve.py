@@ -16,8 +16,10 @@ import scipy.sparse as sp
 
 import signorini as sg
 from signorini import linsolve
+from signorini.linsolve import factor, mkl
 from signorini.linsolve import SOLVERS, Pardiso, SuperLU, TangentSolver, get_solver
 from signorini.params import as_jax
+from signorini.app.commands import hertz as hertz_cmd
 from signorini.problems import hertz
 from signorini.problems.hertz_friction import hertz_friction_problem
 from signorini.algorithms.stepping import model_for
@@ -96,8 +98,8 @@ def test_missing_named_solver_says_how_to_install(monkeypatch):
 
     from signorini.algorithms.stepping import _MODELS
 
-    monkeypatch.setattr(linsolve, "_MKL", None)
-    monkeypatch.setattr(linsolve, "_load_mkl", no_mkl)
+    monkeypatch.setattr(mkl, "_MKL", None)
+    monkeypatch.setattr(mkl, "_load_mkl", no_mkl)
     _MODELS.clear()  # a kept model keeps the solver it made before (model.cache)
     with pytest.raises(sg.InputError, match=r"pip install pypardiso"):
         get_solver("pardiso")
@@ -115,14 +117,14 @@ def test_mkl_runtime_found_without_importing_pypardiso(monkeypatch):
         pytest.skip("MKL is not installed here")
     import ctypes
 
-    path = linsolve._mkl_rt_path()
+    path = mkl._mkl_rt_path()
     assert path is not None and "mkl_rt" in os.path.basename(path)
     assert hasattr(ctypes.CDLL(path), "pardiso")
-    monkeypatch.setattr(linsolve, "_MKL", None)
+    monkeypatch.setattr(mkl, "_MKL", None)
     monkeypatch.setenv("PYPARDISO_MKL_RT", "/nonexistent/libmkl_rt.so")
-    assert linsolve._mkl_rt_path() == "/nonexistent/libmkl_rt.so"
+    assert mkl._mkl_rt_path() == "/nonexistent/libmkl_rt.so"
     with pytest.raises(sg.InputError, match=r"pip install pypardiso"):
-        linsolve._load_mkl()
+        mkl._load_mkl()
 
 
 def test_mkl_runtime_lookup_takes_the_newest_in_the_environment(tmp_path, monkeypatch):
@@ -135,11 +137,11 @@ def test_mkl_runtime_lookup_takes_the_newest_in_the_environment(tmp_path, monkey
     monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
     monkeypatch.setattr(site, "USER_BASE", str(tmp_path / "user"))
     monkeypatch.setattr(sys, "prefix", str(tmp_path / "env"))
-    assert linsolve._mkl_rt_path() is None
+    assert mkl._mkl_rt_path() is None
     (tmp_path / "env" / "lib").mkdir(parents=True)
     for name in ("libmkl_rt.so.2", "libmkl_rt.so.10", "libmkl_rt.so.9", "libmkl_core.so.3"):
         (tmp_path / "env" / "lib" / name).write_bytes(b"")
-    assert linsolve._mkl_rt_path() == str(tmp_path / "env" / "lib" / "libmkl_rt.so.10")
+    assert mkl._mkl_rt_path() == str(tmp_path / "env" / "lib" / "libmkl_rt.so.10")
 
 
 def test_umfpack_message_names_its_package():
@@ -150,7 +152,7 @@ def test_umfpack_message_names_its_package():
 
 
 def test_summary_names_the_solver(tmp_path):
-    s = hertz.run(tmp_path / "h", fd_check=False, size=8, coarse_start=False)
+    s = hertz_cmd.run(tmp_path / "h", fd_check=False, size=8, coarse_start=False)
     assert s["solver"] == get_solver("auto").name and s["symmetric_factorisation"] is True
 
 
@@ -191,6 +193,7 @@ from threadpoolctl import threadpool_limits
 from signorini import linsolve
 from signorini.errors import InputError, SingularTangentError
 from signorini.linsolve import Pardiso, mkl_threads
+from signorini.linsolve.pardiso import _Handle
 n = 2000  # a 2-D Laplacian plus a shift: symmetric, with fill-in worth two threads
 T = sp.diags([-1.0, 2.2, -1.0], [-1, 0, 1], shape=(45, 45))
 K = (sp.kron(sp.eye(45), T) + sp.kron(T, sp.eye(45))).tocsr()
@@ -201,18 +204,18 @@ with mkl_threads(2):
     old = s.factorize(K, symmetric=True)
 # a factor of the old analysis is refused after a new one, also when the numeric
 # factorisation that follows it fails (its solve would find no factor: a crash)
-call = linsolve._Handle.call
+call = _Handle.call
 def failing(self, phase, a=None, b=None):
     if phase == 22:
         raise SingularTangentError("planted")
     return call(self, phase, a, b)
-linsolve._Handle.call = failing
+_Handle.call = failing
 with mkl_threads(1):
     try:
         s.factorize(K * 2.0, symmetric=True)
     except SingularTangentError:
         pass
-linsolve._Handle.call = call
+_Handle.call = call
 try:
     old.solve(b)
     print("stale solved", s.analyses)
@@ -243,7 +246,8 @@ def test_factorisation_with_fewer_threads_than_the_analysis_had():
     user's ``threadpool_limits(1)`` around a later solve, or a limit of PARDISO's
     thread domain alone. The pattern is analysed again instead. Run in a child
     process, so that a regression fails this test only."""
-    from signorini.linsolve import _mkl, mkl_max_threads, mkl_threads
+    from signorini.linsolve import mkl_max_threads, mkl_threads
+    from signorini.linsolve.mkl import _mkl
     with mkl_threads(2):
         if mkl_max_threads(_mkl()) != 2:
             pytest.skip("MKL does not run two threads here")
@@ -553,7 +557,7 @@ def test_mkl_product_of_the_check_equals_scipys():
     n = 300
     A = (sp.random(n, n, density=0.05, random_state=6) + sp.diags(2.0 + rng.random(n))).tocsr()
     A.indices, A.indptr = A.indices.astype(np.int32), A.indptr.astype(np.int32)
-    prod = linsolve._MklProduct(linsolve._mkl().lib, A)
+    prod = mkl._MklProduct(mkl._mkl().lib, A)
     assert prod.ok
     for transpose in (False, True):
         M = (A.T if transpose else A).toarray()
@@ -565,7 +569,7 @@ def test_mkl_product_of_the_check_equals_scipys():
                 np.testing.assert_allclose(r, b - M @ x, rtol=0, atol=1e-13 * np.abs(M).max() * 10)
     # the product keeps the arrays it points into, whatever becomes of the matrix
     B = A.copy()
-    kept = linsolve._MklProduct(linsolve._mkl().lib, B)
+    kept = mkl._MklProduct(mkl._mkl().lib, B)
     x = rng.normal(size=n)
     expected = -(B @ x)
     B.data = np.zeros_like(B.data)
@@ -573,17 +577,17 @@ def test_mkl_product_of_the_check_equals_scipys():
     # 64-bit indices: no MKL product, the factor falls back to SciPy's
     A64 = A.copy()
     A64.indices, A64.indptr = A64.indices.astype(np.int64), A64.indptr.astype(np.int64)
-    assert linsolve._MklProduct(linsolve._mkl().lib, A64)(x, x) is None
+    assert mkl._MklProduct(mkl._mkl().lib, A64)(x, x) is None
     # a PARDISO factor uses it for every solve, 1-D or 2-D, of K or K^T: SciPy's
     # product is never called
     f = get_solver("pardiso").factorize(A)
-    assert isinstance(f._residual_of, linsolve._MklProduct) and f._residual_of.ok
+    assert isinstance(f._residual_of, mkl._MklProduct) and f._residual_of.ok
 
     def no_scipy(*args):
         raise AssertionError("SciPy's product used")
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(linsolve, "_residual", no_scipy)
+        mp.setattr(factor, "_residual", no_scipy)
         for transpose in (False, True):
             M = (A.T if transpose else A).toarray()
             for b in (rng.normal(size=n), rng.normal(size=(n, 3)),

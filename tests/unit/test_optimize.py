@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from signorini.app.commands import optimise_forging as fo_cmd
 from signorini.design import optimize as opt
 from signorini.problems import forging as fg
 from signorini.problems import forging_opt as fo
@@ -75,7 +76,7 @@ def test_one_solve_per_fun_jac_pair(forging_objectives, monkeypatch, tmp_path):
     ddm, fd = forging_objectives
     calls = []
     real = opt.solve
-    monkeypatch.setattr(opt, "solve", lambda *a, **k: calls.append(k.get("sensitivities")) or real(*a, **k))
+    monkeypatch.setattr(opt, "solve", lambda *a, **k: calls.append(k.get("wrt")) or real(*a, **k))
     x = np.array([0.71, 0.7, 0.69, 0.7, 0.74])
     n0 = ddm.n_solves
     F = ddm.fun(x)
@@ -208,7 +209,7 @@ def test_forging_preform_optimisation_outputs_and_resume(tmp_path):
     """mu = 0.3, 3 x 6 mesh, 10 increments, 4 BFGS iterations: F falls, every output is
     written, and resume continues the history from its best point."""
     out = tmp_path / "opt"
-    s = fo.run(out, [0.3], mesh=(3, 6), steps=10, maxiter=4)
+    s = fo_cmd.run(out, [0.3], mesh=(3, 6), steps=10, maxiter=4)
     r = s["runs"][0]
     d = out / "mu_0.3"
     for f in ("history.csv", "summary.json", "shape.png", "convergence.png", "forging.pvd",
@@ -219,7 +220,7 @@ def test_forging_preform_optimisation_outputs_and_resume(tmp_path):
     assert r["F_opt"] < 0.2 * r["F_start"] and r["iterations"] == 4
     hist = opt.read_history(d / "history.csv", list(fg.SHAPE))
     assert len(hist) == r["solves"] and min(h.F for h in hist if h.status == "ok") == r["F_opt"]
-    s2 = fo.run(out, [0.3], mesh=(3, 6), steps=10, maxiter=2, resume=True)
+    s2 = fo_cmd.run(out, [0.3], mesh=(3, 6), steps=10, maxiter=2, resume=True)
     r2 = s2["runs"][0]
     assert r2["resumed"] and r2["F_start"] == r["F_opt"] and r2["F_opt"] <= r["F_opt"]
     hist2 = opt.read_history(d / "history.csv", list(fg.SHAPE))

@@ -13,6 +13,7 @@ import signorini as sg
 from signorini.fem import element
 from signorini._jax import jax, jnp
 from signorini.app.cli import main
+from signorini.app.commands import forging as fg_cmd
 from signorini.problems import forging as fg
 
 pytestmark = pytest.mark.filterwarnings("ignore:contact .* the contact zone holds only")
@@ -25,7 +26,7 @@ def gauss_kirchhoff(sol, i=-1):
     state = sol.state_before(i)[0]
     X = sol.reference()
     u = sol.displacement(i)
-    mp = m.material.values(sol._jp)
+    mp = m.material.values(sol.jax_params)
 
     def cell(ue, Xe, hn):
         H, _ = element.gauss_gradients(ue, Xe, m.kinematics, m.formulation)
@@ -136,7 +137,7 @@ def test_default_forging_table1(tmp_path):
     """The default run (10 x 20, 50 increments, mu = 0.2) with its finite-difference
     check: ~90 s on 2 cores, so skipped in CI, where the 4 x 8 test above covers the
     same code. Measured: DDM = FD to <= 2.5e-7 for all seven parameters."""
-    s = fg.run(tmp_path / "f", fd_check=True)
+    s = fg_cmd.run(tmp_path / "f", fd_check=True)
     assert all(r < 1e-5 for r in s["ddm_vs_fd_rel_diff"].values()), s["ddm_vs_fd_rel_diff"]
     assert abs(s["volume"]["ratio"] - 1) < 0.01
     assert not any(s_ for s_ in s["warnings"] if "grew by" in s_)

@@ -40,7 +40,7 @@ def punch(formulation, n=12, delta=0.02, steps=20):
     sol = sg.solve(pb, steps=steps, options=sg.NewtonOptions(rtol=1e-10, line_search=True))
     p = []
     for inc in sol.increments:
-        f = sol.model.contact_fields(inc.w, sol._jp, inc.t, 0)
+        f = sol.model.contact_fields(inc.w, sol.jax_params, inc.t, 0)
         p.append(float((f["area"] * f["p_N"]).sum()) / B)
     return np.array(p) / PRANDTL
 

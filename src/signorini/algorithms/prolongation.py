@@ -65,7 +65,7 @@ class Prolongation:
                 a.n_mult != b.n_mult for a, b in zip(cm.surfaces, fm.surfaces)):
             raise InputError("prolong: the coarse and fine problems must have the same contact "
                              "surfaces (in the same order, with the same multipliers per node)")
-        Xc, Xf = np.asarray(cm._X0_np), np.asarray(fm._X0_np)
+        Xc, Xf = np.asarray(cm.reference_nodes), np.asarray(fm.reference_nodes)
         self.coarse_model, self.fine_model = cm, fm
         if cm.n_dof == fm.n_dof and Xc.shape == Xf.shape and np.array_equal(Xc, Xf) and all(
                 np.array_equal(a.nodes, b.nodes) and a.lam_offset == b.lam_offset

@@ -65,7 +65,7 @@ class Solution:
         self.linear_solver = None  # that solver object
         self.symmetric: bool | None = None  # symmetric factorisation of the tangent?
         self.shape_gradient = None  # (n_nodes, 2) adjoint gradient to write with the last increment
-        self._jp = as_jax(params)
+        self.jax_params = as_jax(params)
 
     # -------------------------------------------------------------- basics
     def __repr__(self):
@@ -101,7 +101,7 @@ class Solution:
 
     def reference(self) -> np.ndarray:
         """(n_nodes, 2) reference coordinates X(phi)."""
-        return np.asarray(self.model.reference(self._jp))
+        return np.asarray(self.model.reference(self.jax_params))
 
     def current(self, i: int = -1) -> np.ndarray:
         """(n_nodes, 2) current coordinates x = X + u."""
@@ -131,7 +131,7 @@ class Solution:
         if m.has_history:
             inc = self._inc(i)
             state = self.state_before(i)[0]
-            cases = m._cases(to_device(inc.w), self._jp, inc.t, state) if m.has_contact_history else None
+            cases = m.compiled.cases(to_device(inc.w), self.jax_params, inc.t, state) if m.has_contact_history else None
             d = self.history_response(lambda w, p, t, st: m.residual(w, p, t, st, cases)[m.prescribed],
                                       i)[1][name]
             r[m.prescribed] = np.asarray(d)
@@ -149,8 +149,8 @@ class Solution:
             prev = self.increments[n - 1]
             return self.state_after(n - 1), prev.state_sens
         m = self.model
-        sdot = m.initial_state_sensitivity(self._jp, self.names) if self.names else None
-        return m.initial_state(np.zeros(m.n_dof), self._jp), sdot
+        sdot = m.initial_state_sensitivity(self.jax_params, self.names) if self.names else None
+        return m.initial_state(np.zeros(m.n_dof), self.jax_params), sdot
 
     def state_after(self, n: int):
         """History state after increment n, replayed by ``model.update`` from the
@@ -170,12 +170,12 @@ class Solution:
         while j >= 0 and self.increments[j].state is None:
             j -= 1
         m = self.model
-        state = (m.initial_state(np.zeros(m.n_dof), self._jp) if j < 0 else
+        state = (m.initial_state(np.zeros(m.n_dof), self.jax_params) if j < 0 else
                  self.increments[j].state)
         out = {}
         for k in range(j + 1, n + 1):
             inc_k = self.increments[k]
-            state = out[k] = m._update(to_device(inc_k.w), self._jp, inc_k.t, state)
+            state = out[k] = m.compiled.update(to_device(inc_k.w), self.jax_params, inc_k.t, state)
         return out
 
     # ------------------------------------------------------- sensitivities
@@ -206,7 +206,7 @@ class Solution:
         compiled function on the model for reuse (the same key must always mean
         the same ``fn``). Returns (value, {name: DF/Dphi}).
         """
-        return self._evaluate(fn, i, with_sensitivities, key, with_state=False)
+        return self.evaluate(fn, i, with_sensitivities, key, with_state=False)
 
     def contact(self, i: int = -1, surface: int = 0) -> dict:
         """Per contact node: ``node, x_ref, x, gap, p_N, p_T, area`` and
@@ -225,7 +225,7 @@ class Solution:
             out[f"dgap_d{name}"] = np.asarray(d["gap"])
         if s.contact.method.status is not None:  # friction: open / stick / slip, slip increment
 
-            st, gt = m._status(to_device(self._inc(i).w), self._jp, self._inc(i).t,
+            st, gt = m.compiled.status(to_device(self._inc(i).w), self.jax_params, self._inc(i).t,
                                self.state_before(i)[0], surface)
             out["status"] = np.array([STATUS_NAMES[k] for k in np.asarray(st)])
             out["slip"] = np.asarray(gt)
@@ -243,9 +243,9 @@ class Solution:
         """Value and DDM sensitivities of F = fn(w, params, t, state_n) for a quantity
         that also depends on the history before increment i (stresses of a plastic
         material, reactions with friction): the JVP carries D state_n / D phi too."""
-        return self._evaluate(fn, i, True, key, with_state=True)
+        return self.evaluate(fn, i, True, key, with_state=True)
 
-    def _evaluate(self, fn, i, with_sensitivities, key, with_state):
+    def evaluate(self, fn, i, with_sensitivities, key, with_state):
         """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])."""
         inc = self._inc(i)
         w = to_device(inc.w)
@@ -262,12 +262,12 @@ class Solution:
                 cache[(key, with_state)] = (val_fn, jvp_fn)
         extra = (state,) if with_state else ()
         t = np.float64(inc.t)  # one type for t whatever the caller stored: one compilation
-        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self._jp, t, *extra))
+        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra))
         if not with_sensitivities or not self.names:
             return val, {}
-        e = unit_tangents(self._jp, self.names)
+        e = unit_tangents(self.jax_params, self.names)
         wd = to_device(np.stack([inc.sens[n] for n in self.names]))
-        d = jvp_fn(w, self._jp, t, extra, wd, e, (sdot,) if with_state else ())
+        d = jvp_fn(w, self.jax_params, t, extra, wd, e, (sdot,) if with_state else ())
         d = jax.tree_util.tree_map(np.asarray, d)  # index in NumPy: no eager JAX op per name
         return val, {n: jax.tree_util.tree_map(lambda v, k=k: v[k], d)
                      for k, n in enumerate(self.names)}

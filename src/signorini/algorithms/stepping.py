@@ -446,7 +446,7 @@ def _residual(model, w, params, t, state_n) -> np.ndarray:
     kernel less to compile on a first run (0.28 s at 5k DOFs)."""
     if model.linear_elements:
         return model.local_tangents(w, params, t, state_n)[0]
-    return np.asarray(model._residual(to_device(w), params, t, state_n))
+    return np.asarray(model.compiled.residual(to_device(w), params, t, state_n))
 
 
 class _Guide:

@@ -97,9 +97,9 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
     def update(w, p, t, lam_k):
         X = model.reference(p)
         u, lams = model.split(w)
-        x, _, _, geo, cp, Xs = model._contact_inputs(s, X, u, lams[0], p, t)
+        x, _, _, geo, cp, Xs = model.contact_inputs(s, X, u, lams[0], p, t)
         return jax.vmap(lambda xs, lk, X0, N0: method.update(
-            xs, geo, model._obstacle_at(s, (X0, N0)), cp, lk))(x, lam_k, *Xs)
+            xs, geo, model.obstacle_at(s, (X0, N0)), cp, lk))(x, lam_k, *Xs)
 
     if ("uzawa",) not in model.cache:  # compiled once per model, like solve()'s DDM
         model.cache[("uzawa",)] = (jax.jit(update), jax.jit(jax.vmap(

@@ -26,7 +26,7 @@ Sign convention (docs/theory.md §0): the traction on the body is
 tangent t' (it opposes the slip increment g_T).
 
 Case selection at the boundaries (closed at zero, as in
-:func:`~signorini.contact.methods._neg_part`): a node is closed when
+:func:`~signorini.contact.methods.neg_part`): a node is closed when
 lam^_N <= 0; a closed node with mu > 0 sticks when (1 + TIE) |lam^_T| <=
 (1 - TIE) rho, i.e. strictly inside the disc by a relative :data:`TIE`, and
 also when lam^_T = rho = 0 (so a body touching the die at the start is held

@@ -23,7 +23,7 @@ from ..errors import InputError
 from ..params import Spec, resolve
 
 
-def _neg_part(x):
+def neg_part(x):
     """min(x, 0), with the closed branch taken at x = 0 (see module docstring)."""
     return jnp.where(x <= 0.0, x, 0.0)
 
@@ -64,7 +64,7 @@ class AugmentedLagrangian(_Regularised):
         eps = cp["eps"]
         g = obstacle.gap(x, geo)
         lam_hat = lam[0] + eps * g
-        return A * (_neg_part(lam_hat) ** 2 - lam[0] ** 2) / (2.0 * eps)
+        return A * (neg_part(lam_hat) ** 2 - lam[0] ** 2) / (2.0 * eps)
 
     def residual(self, x, lam, A, geo, obstacle, cp, hist):
         """(2 + 1,): contact force on x and the multiplier equation (eqs. 19-20)."""
@@ -76,7 +76,7 @@ class AugmentedLagrangian(_Regularised):
         p_N = -<lam + eps g>_-: equal to -lam at convergence on a closed node and
         exactly 0 on an open one (whose lam is zero only to round-off when
         Newton started from a predicted state)."""
-        return -_neg_part(lam[0] + cp["eps"] * obstacle.gap(x, geo)), jnp.zeros(())
+        return -neg_part(lam[0] + cp["eps"] * obstacle.gap(x, geo)), jnp.zeros(())
 
     def row_scale(self, cp):
         """Factor that gives the multiplier rows force units (convergence norm only)."""
@@ -97,13 +97,13 @@ class Penalty(_Regularised):
     def potential(self, x, lam, A, geo, obstacle, cp):
         """A_S eps/2 <g>_-^2  (eq. 13)."""
         g = obstacle.gap(x, geo)
-        return 0.5 * A * cp["eps"] * _neg_part(g) ** 2
+        return 0.5 * A * cp["eps"] * neg_part(g) ** 2
 
     def residual(self, x, lam, A, geo, obstacle, cp, hist):
         return jax.grad(self.potential)(x, lam, A, geo, obstacle, cp)
 
     def tractions(self, x, lam, A, geo, obstacle, cp):
-        return -cp["eps"] * _neg_part(obstacle.gap(x, geo)), jnp.zeros(())
+        return -cp["eps"] * neg_part(obstacle.gap(x, geo)), jnp.zeros(())
 
     def row_scale(self, cp):
         return 1.0

@@ -214,7 +214,7 @@ def _method(method, old: dict):
 
 
 def _value(sol, fn, idx, key) -> float:
-    return float(sum(np.asarray(sol._evaluate(fn, i, False, key, with_state=True)[0]) for i in idx))
+    return float(sum(np.asarray(sol.evaluate(fn, i, False, key, with_state=True)[0]) for i in idx))
 
 
 def _ddm(problem, response, names, steps, increments, options, solver, label) -> Gradient:
@@ -324,7 +324,7 @@ def check_scalar(fn, solution, i: int) -> None:
     """The response must be one number (an InputError, not JAX's TypeError)."""
     inc = solution.increments[i]
     state = solution.state_before(i)[0]
-    shape = jax.eval_shape(fn, jnp.asarray(inc.w), solution._jp, inc.t, state).shape
+    shape = jax.eval_shape(fn, jnp.asarray(inc.w), solution.jax_params, inc.t, state).shape
     if int(np.prod(shape)) != 1:
         raise InputError(f"the response must return a scalar, got an array of shape {shape}")
 

@@ -179,7 +179,7 @@ class Objective:
             last good point, see the module docstring) or ``"raise"``.
         failure_value: a fixed ``F_fail`` (default: F_max + 10 max |F| of the good points).
         validate: optional ``validate(params)`` raising :class:`~signorini.errors.InputError`
-            for a design the problem builder would reject (e.g. ``forging._check_shape``);
+            for a design the problem builder would reject (e.g. ``forging.check_shape``);
             called with the full parameter dict before each solve.
         factory: force the interpretation of ``response`` (default: detected,
             one positional parameter = factory).

@@ -45,14 +45,14 @@ def shape_gradients(xi):
 
 
 #: N and dN/dxi at the Gauss points, (4 gauss, 4 nodes) and (4 gauss, 4 nodes, 2).
-_N = np.stack([np.asarray(shape_functions(p)) for p in GAUSS_POINTS])
-_DN = np.stack([np.asarray(shape_gradients(p)) for p in GAUSS_POINTS])
+N_PARENT = np.stack([np.asarray(shape_functions(p)) for p in GAUSS_POINTS])
+DN_PARENT = np.stack([np.asarray(shape_gradients(p)) for p in GAUSS_POINTS])
 #: the same at the centroid (1 point)
 _N0 = np.asarray(shape_functions(np.zeros(2)))[None]
 _DN0 = np.asarray(shape_gradients(np.zeros(2)))[None]
 
 
-def _gradients(DN, Xe):
+def physical_gradients(DN, Xe):
     J = jnp.einsum("gai,aj->gji", DN, Xe)  # (g, 2, 2): dX_j/dxi_i
     detJ = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
     Jinv = jnp.stack([jnp.stack([J[:, 1, 1], -J[:, 0, 1]], -1),
@@ -70,14 +70,14 @@ def reference_gradients(Xe):
         dNdX (4 gauss, 4 nodes, 2) and w (4,) = Gauss weight * det(dX/dxi)
         (per unit thickness; see the kinematics for the volume weights).
     """
-    dNdX, detJ = _gradients(_DN, Xe)
+    dNdX, detJ = physical_gradients(DN_PARENT, Xe)
     return dNdX, GAUSS_WEIGHTS * detJ
 
 
 def _points(Xe, kinematics):
     """dN/dX (4 gauss, 4 nodes, 2) and the volume weights w (4,) of the kinematics."""
-    dNdX, detJ = _gradients(_DN, Xe)
-    return dNdX, kinematics.volume_weights(Xe, _N, GAUSS_WEIGHTS * detJ)
+    dNdX, detJ = physical_gradients(DN_PARENT, Xe)
+    return dNdX, kinematics.volume_weights(Xe, N_PARENT, GAUSS_WEIGHTS * detJ)
 
 
 @dataclass(frozen=True)
@@ -147,9 +147,9 @@ def gauss_gradients(ue, Xe, kinematics=PLANE_STRAIN, formulation=STANDARD):
     """Displacement gradients (g, 3, 3) seen by the material at the Gauss points
     (Hbar for F-bar) and the volume weights w (g,)."""
     dNdX, w = _points(Xe, kinematics)
-    H = kinematics.displacement_gradients(ue, Xe, _N, dNdX)
+    H = kinematics.displacement_gradients(ue, Xe, N_PARENT, dNdX)
     if not formulation.linear:
-        dNdX0, _ = _gradients(_DN0, Xe)
+        dNdX0, _ = physical_gradients(_DN0, Xe)
         H0 = kinematics.displacement_gradients(ue, Xe, _N0, dNdX0)[0]
         H = formulation.modify(H, H0)
     return H, w
@@ -178,9 +178,9 @@ def element_update(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formu
     hn = _history(material, hn)
     if formulation.linear:  # r = sum_g w B^T P, H = B u_e (no VJP of the gradients)
         dNdX, w = _points(Xe, kinematics)
-        H = kinematics.displacement_gradients(ue, Xe, _N, dNdX)
+        H = kinematics.displacement_gradients(ue, Xe, N_PARENT, dNdX)
         P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
-        return _forces(w, dNdX, kinematics.hoop_functions(Xe, _N), P[:, :2, :2], P[:, 2, 2]), h
+        return _forces(w, dNdX, kinematics.hoop_functions(Xe, N_PARENT), P[:, :2, :2], P[:, 2, 2]), h
     w = gauss_gradients(ue, Xe, kinematics, formulation)[1]
     H, vjp = jax.vjp(lambda u: gauss_gradients(u, Xe, kinematics, formulation)[0], ue)
     P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
@@ -219,14 +219,14 @@ def element_residual_tangent(ue, Xe, material, mp, hn=None, kinematics=PLANE_STR
     if formulation.linear:
         dNdX, w = _points(Xe, kinematics)
         rows, cols = (np.array(c) for c in zip(*kinematics.active))  # the non-zero components of H
-        hv = kinematics.displacement_gradients(ue, Xe, _N, dNdX)[:, rows, cols]  # (g, na)
+        hv = kinematics.displacement_gradients(ue, Xe, N_PARENT, dNdX)[:, rows, cols]  # (g, na)
 
         def stress(v, h_):
             P, h = material.update(jnp.zeros((3, 3)).at[rows, cols].set(v), h_, mp)
             return P[rows, cols], (P[rows, cols], h)
 
         C, (P, h) = jax.vmap(jax.jacfwd(stress, has_aux=True))(hv, hn)  # (g, na, na), (g, na)
-        r, K = _contract(w, dNdX, kinematics.hoop_functions(Xe, _N), P, C)
+        r, K = _contract(w, dNdX, kinematics.hoop_functions(Xe, N_PARENT), P, C)
         return r, K, h
 
     return _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation)
@@ -252,9 +252,9 @@ def _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation):
     # Hbar = c (I + H) - I is zero outside the in-plane block and the 33 entry
     brows, bcols = np.array([0, 0, 1, 1, 2]), np.array([0, 1, 0, 1, 2])
     dNdX, w = _points(Xe, kinematics)
-    dNdX0, _ = _gradients(_DN0, Xe)
+    dNdX0, _ = physical_gradients(_DN0, Xe)
     # B_g (g, na, 8) and B_0 (na, 8): the displacement gradients are linear in u_e
-    grad_g = lambda u: kinematics.displacement_gradients(u.reshape(4, 2), Xe, _N, dNdX)[:, rows, cols]
+    grad_g = lambda u: kinematics.displacement_gradients(u.reshape(4, 2), Xe, N_PARENT, dNdX)[:, rows, cols]
     grad_0 = lambda u: kinematics.displacement_gradients(u.reshape(4, 2), Xe, _N0, dNdX0)[0, rows, cols]
     u8 = ue.reshape(8)
     B = jnp.concatenate([jax.jacfwd(grad_g)(u8),

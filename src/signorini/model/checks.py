@@ -108,7 +108,7 @@ def before_solve(model, params, solution) -> None:
                     f"contact {s.contact.edges!r}: the centre {c.round(6).tolist()} of the circular "
                     "obstacle lies inside the body at t = 0, where the gap and its normal are "
                     "undefined; move the obstacle (centre, radius) outside the body")
-        g = np.asarray(model._fields(w0, params, 0.0, i)["gap"])
+        g = np.asarray(model.compiled.fields(w0, params, 0.0, i)["gap"])
         k = int(np.argmin(g))
         e = s.edges
         near = np.any(e == s.nodes[k], axis=1)  # the cells' edges at that node
@@ -135,7 +135,7 @@ class IncrementChecks:
         u = np.asarray(w)[: 2 * m.n_nodes].reshape(-1, 2)
         snap = []
         for i, s in enumerate(m.surfaces):
-            f = m._fields(to_device(w), self.params, t, i)
+            f = m.compiled.fields(to_device(w), self.params, t, i)
             snap.append((X[s.nodes] + u[s.nodes], np.asarray(f["p_N"]) > 0))
         return t, snap
 

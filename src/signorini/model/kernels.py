@@ -27,6 +27,9 @@ from __future__ import annotations
 
 import time
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..fem import element
@@ -42,6 +45,20 @@ from .problem import Problem
 
 #: reserved parameter name: every nodal coordinate of the reference mesh (n_nodes, 2)
 NODES = "nodes"
+
+
+@dataclass(frozen=True)
+class Compiled:
+    """The model's compiled programs that solvers and outputs call eagerly (each
+    the ``jax.jit`` of the pure method of the same name)."""
+
+    residual: Callable      #: Model.residual(w, params, t, state_n)
+    cases: Callable         #: Model.cases(w, params, t, state_n)
+    status: Callable        #: Model.contact_status(w, params, t, state_n, surface)
+    fields: Callable        #: Model.contact_fields(w, params, t, surface)
+    update: Callable        #: Model.update(w, params, t, state_n)
+    switch_fields: Callable  #: Model.switch_fields(w, params, t, state_n)
+    stiffness: Callable     #: element stiffness of a linear body, Ke(params)
 
 
 class Model:
@@ -68,11 +85,11 @@ class Model:
         finite = p.material.finite_strain
         self.linear_contact = [
             c.kinematics == "linear" or (c.kinematics == "auto" and not finite) for c in p.contact]
-        self._X0_np = p.mesh.nodes
-        self._shape_names = list(p.shape)
+        self.reference_nodes = p.mesh.nodes
+        self.shape_names = list(p.shape)
         self._V = {k: to_device(np.asarray(v, dtype=float)) for k, v in p.shape.items()}
         self._X0 = to_device(np.asarray(p.mesh.nodes, dtype=float))
-        self._X0N = [nodal_normals(self._X0_np, s.edges, s.nodes) for s in layout.surfaces]
+        self._X0N = [nodal_normals(self.reference_nodes, s.edges, s.nodes) for s in layout.surfaces]
 
         # linear elastic body (small strain, standard element): its stiffness does not
         # depend on w, so it is computed once per parameter set and reused by every
@@ -89,15 +106,14 @@ class Model:
         # friction: the case flags and the tangent in one program (one dispatch per Newton
         # evaluation instead of two: 0.20 -> 0.12 ms at 5k DOFs, theory §10.2)
         self._local_cases = jax.jit(self._local_cases_impl)
-        self._stiffness = jax.jit(lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1])
-        self._residual = jax.jit(self.residual)
-        self._cases = jax.jit(self.cases)
+        self.compiled = Compiled(
+            residual=jax.jit(self.residual), cases=jax.jit(self.cases),
+            status=jax.jit(self.contact_status, static_argnums=4),
+            fields=jax.jit(self.contact_fields, static_argnums=3), update=jax.jit(self.update),
+            switch_fields=jax.jit(self.switch_fields),
+            stiffness=jax.jit(lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1]))
         self._reference = jax.jit(self._reference_impl)
         self.prescribed_at = jax.jit(self.prescribed_values)  # one program, not an op per Fixed
-        self._status = jax.jit(self.contact_status, static_argnums=4)
-        self._fields = jax.jit(self.contact_fields, static_argnums=3)
-        self._update = jax.jit(self.update)
-        self._switch_fields = jax.jit(self.switch_fields)
         self._update_jvp = jax.jit(jax.vmap(
             lambda w, p, t, s, wd, e, sd: jax.jvp(lambda w_, p_, s_: self.update(w_, p_, t, s_),
                                                   (w, p, s), (wd, e, sd))[1],
@@ -176,7 +192,7 @@ class Model:
             s.contact.obstacle.check(params)
             s.contact.method.check(params)
             self._check_regularisation(s, params)
-        if self._shape_names:
+        if self.shape_names:
             X = np.asarray(self.reference(as_jax(params)))
             check_orientation(X, self.conn, "reference mesh at the given shape parameters")
             self.kinematics.check_mesh(X)
@@ -197,7 +213,7 @@ class Model:
             E = float(resolve(self.problem.material.E, params))
         except AttributeError:
             return
-        h = self.contact_cell_size(s, self._X0_np)
+        h = self.contact_cell_size(s, self.reference_nodes)
         scale = E / h
         lo, hi = self.EPS_RANGE
         for k, v in vals.items():
@@ -213,13 +229,13 @@ class Model:
         """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities (and
         by ``params["nodes"]`` (n_nodes, 2), the shape field of every nodal
         coordinate, when an adjoint gradient asks for it: docs/theory.md §11)."""
-        if not self._shape_names and NODES not in params:
+        if not self.shape_names and NODES not in params:
             return self._X0
         return self._reference(params)  # compiled: called eagerly by checks and outputs
 
     def _reference_impl(self, params):
         X = self._X0
-        for k in self._shape_names:
+        for k in self.shape_names:
             X = X + (params[k] - self.problem.shape_nominal[k]) * self._V[k]
         if NODES in params:
             X = X + params[NODES]
@@ -249,7 +265,7 @@ class Model:
         vals = jnp.stack([jnp.asarray(resolve(f.value, params), dtype=float) * f.ramp(t) for f in groups])
         return vals[index]
 
-    def _contact_inputs(self, s, X, u, lam, params, t):
+    def contact_inputs(self, s, X, u, lam, params, t):
         """Per-node inputs of a surface: positions x, multipliers, areas A, obstacle
         geometry, method values, and (X, reference normals) for linearised kinematics."""
         c = s.contact
@@ -264,9 +280,9 @@ class Model:
         X = self.reference(params)
         u, lams = self.split(w)
         for i, s in enumerate(self.surfaces):
-            yield (i, s) + self._contact_inputs(s, X, u, lams[i], params, t)
+            yield (i, s) + self.contact_inputs(s, X, u, lams[i], params, t)
 
-    def _obstacle_at(self, s, Xs):
+    def obstacle_at(self, s, Xs):
         """The obstacle as seen by one contact node (linearised kinematics if asked)."""
         if self.linear_contact[self.surfaces.index(s)]:
             return Linearized(s.contact.obstacle, *Xs)
@@ -308,7 +324,7 @@ class Model:
                 continue
             h = self._node_history(i, state_n)
             out.append(jax.vmap(lambda xs, ls, hs, X0, s=s, geo=geo, cp=cp: s.contact.method.cases(
-                xs, ls, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, h, Xs))
+                xs, ls, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, h, Xs))
         return tuple(out)
 
     def _elements(self, w, params, state_n, tangent: bool):
@@ -365,7 +381,7 @@ class Model:
             if not s.has_history:
                 contact.append(None)
                 continue
-            contact.append(jax.vmap(lambda xs, X0, s=s, geo=geo: self._obstacle_at(s, X0).coordinate(
+            contact.append(jax.vmap(lambda xs, X0, s=s, geo=geo: self.obstacle_at(s, X0).coordinate(
                 xs, geo))(x, Xs))
         material = self._elements(w, params, state_n, tangent=False)[1] if self.n_state else None
         return (w, tuple(contact), material)
@@ -379,7 +395,7 @@ class Model:
         if self.n_state:
             h0 = jnp.broadcast_to(self.material.initial_state(),
                                   (len(self.conn), element.N_GAUSS, self.n_state))
-        contact = self._update(w, params, 0.0, (w, (None,) * len(self.surfaces), h0))[1]
+        contact = self.compiled.update(w, params, 0.0, (w, (None,) * len(self.surfaces), h0))[1]
         return (w, contact, h0)
 
     def initial_state_sensitivity(self, params, names):
@@ -400,7 +416,7 @@ class Model:
         if not self.has_history:
             return state_n, state_dot
         w = to_device(inc.w)
-        state = self._update(w, params, t, state_n)
+        state = self.compiled.update(w, params, t, state_n)
         # the unknowns in the state are those of the increment: share inc.w instead of
         # keeping a second copy (half the memory per increment with friction)
         state = (inc.w,) + tuple(state[1:])
@@ -432,7 +448,7 @@ class Model:
             h = self._node_history(i, state_n, cases)
             method = s.contact.method
             rc = jax.vmap(lambda xs, ls, a, hs, X0, s=s, method=method, geo=geo, cp=cp: method.residual(
-                xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs),
+                xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs),
                 (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
@@ -461,7 +477,7 @@ class Model:
             method = s.contact.method
 
             def node(xs, ls, a, hs, X0, s=s, method=method, geo=geo, cp=cp):
-                obstacle = self._obstacle_at(s, X0)
+                obstacle = self.obstacle_at(s, X0)
 
                 def r(v):
                     out = method.residual(v[:2], v[2:], a, geo, obstacle, cp, hs)
@@ -505,7 +521,7 @@ class Model:
         for i, s in enumerate(self.surfaces):
             if s.n_mult:
                 eps = float(np.ravel(s.contact.method.row_scale(s.contact.method.values(params)))[0])
-                g = np.asarray(self._fields(to_device(w), params, 0.0, i)["gap"])
+                g = np.asarray(self.compiled.fields(to_device(w), params, 0.0, i)["gap"])
                 lam = np.zeros((s.nodes.size, s.n_mult))
                 lam[:, 0] = -eps * g - 1e-9 * (1.0 + eps * float(np.max(np.abs(g))))
                 w[s.lam_offset: s.lam_offset + lam.size] = lam.ravel()
@@ -522,7 +538,7 @@ class Model:
         specs = list(self.material.specs())
         if any(callable(v) for v in specs):
             return None
-        return {v for v in specs if isinstance(v, str)} | set(self._shape_names)
+        return {v for v in specs if isinstance(v, str)} | set(self.shape_names)
 
     def element_key(self, params) -> tuple:
         """The values the element kernels depend on (material and shape parameters;
@@ -538,7 +554,7 @@ class Model:
         between solves; :meth:`element_key`)."""
         key = self.element_key(params)
         if self._ke is None or self._ke[0] != key:
-            Ke = self._stiffness(params)
+            Ke = self.compiled.stiffness(params)
             self._ke = (key, Ke, np.asarray(Ke))
         return self._ke[1], self._ke[2]
 
@@ -556,11 +572,11 @@ class Model:
         s = self.surfaces[surface]
         X = self.reference(params)
         u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[surface], params, t)
+        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
         meth = s.contact.method
-        g = jax.vmap(lambda xs, X0: self._obstacle_at(s, X0).gap(xs, geo))(x, Xs)
+        g = jax.vmap(lambda xs, X0: self.obstacle_at(s, X0).gap(xs, geo))(x, Xs)
         pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
-            xs, ls, a, geo, self._obstacle_at(s, X0), cp))(x, lam, A, Xs)
+            xs, ls, a, geo, self.obstacle_at(s, X0), cp))(x, lam, A, Xs)
         return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
 
     def contact_status(self, w, params, t, state_n, surface: int = 0):
@@ -570,12 +586,12 @@ class Model:
         s = self.surfaces[surface]
         X = self.reference(params)
         u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[surface], params, t)
+        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
         meth = s.contact.method
         h = self._node_history(surface, state_n)
         st = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
-            xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
-        gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self._obstacle_at(s, X0), hs))(x, h, Xs)
+            xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
+        gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self.obstacle_at(s, X0), hs))(x, h, Xs)
         return st, gt
 
     def switch_fields(self, w, params, t, state_n=None):
@@ -588,14 +604,14 @@ class Model:
         u, lams = self.split(w)
         out = []
         for i, s in enumerate(self.surfaces):
-            x, lam, A, geo, cp, Xs = self._contact_inputs(s, X, u, lams[i], params, t)
+            x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[i], params, t)
             meth = s.contact.method
             f = self.contact_fields(w, params, t, i)
             margin = jnp.full(s.nodes.size, jnp.inf)
             if meth.stick_margin is not None:
                 h = self._node_history(i, state_n)
                 margin = jax.vmap(lambda xs, ls, a, hs, X0, s=s, meth=meth, geo=geo, cp=cp: meth.stick_margin(
-                    xs, ls, a, geo, self._obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
+                    xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
             out.append({"gap": f["gap"], "p_N": f["p_N"], "stick_margin": margin})
         ratio = None
         if self.n_state and self.material.yield_ratio is not None:

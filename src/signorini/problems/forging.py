@@ -102,7 +102,7 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
         raise InputError(f"the die stroke must lie in (0, h0) = (0, {H0}), got {values['stroke']}")
     if not 0 < lateral_fraction <= 1:
         raise InputError(f"lateral_fraction must lie in (0, 1], got {lateral_fraction}")
-    _check_shape([values[k] for k in SHAPE])
+    check_shape([values[k] for k in SHAPE])
     n_contact = (nr + 1) + int(np.ceil(lateral_fraction * nz))
     check_size(2 * (nr + 1) * (nz + 1) + 2 * n_contact, force=force_size, what="the forging mesh")
 
@@ -145,7 +145,7 @@ def options(rtol: float = 1e-11):
     return NewtonOptions(rtol=rtol, line_search=True)
 
 
-def _check_shape(phi) -> None:
+def check_shape(phi) -> None:
     """r0(Z) > 0 on [0, h0] (the preform must not pinch to the axis)."""
     Z = np.linspace(0.0, H0, 201)
     r = radius(phi, Z)
@@ -183,7 +183,7 @@ def die_force(model):
 def body_volume(model, x) -> float:
     """Volume of the body of revolution (full 2 pi) with nodal positions x (n_nodes, 2)."""
     def cell(xe):
-        _, detJ = element._gradients(element._DN, xe)
-        return model.kinematics.volume_weights(xe, element._N, element.GAUSS_WEIGHTS * detJ).sum()
+        _, detJ = element.physical_gradients(element.DN_PARENT, xe)
+        return model.kinematics.volume_weights(xe, element.N_PARENT, element.GAUSS_WEIGHTS * detJ).sum()
 
     return float(jax.vmap(cell)(jnp.asarray(x)[model.conn]).sum())

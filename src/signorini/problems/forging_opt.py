@@ -11,7 +11,7 @@ phi_k = 0.7 h0.
 Invalid shapes: with L-BFGS-B and SLSQP the bounds phi_k >= ``phi_min``
 keep r0(Z) >= phi_min > 0 (the Bernstein polynomials are non-negative and sum
 to 1). BFGS is unbounded: a trial preform with r0 <= 0 somewhere
-(:func:`~signorini.problems.forging._check_shape`), an inverted element or a
+(:func:`~signorini.problems.forging.check_shape`), an inverted element or a
 Newton failure is answered by the objective's penalty (a large finite value
 and a gradient back towards the last good point), so the line search backs off.
 
@@ -45,7 +45,7 @@ def base_problem(mesh: tuple[int, int] = (10, 20)):
 
 def validate(params: dict) -> None:
     """The preform radius must stay positive on [0, h0] (as forging_problem checks)."""
-    fg._check_shape([params[k] for k in fg.SHAPE])
+    fg.check_shape([params[k] for k in fg.SHAPE])
 
 
 def objective_for(mu: float, *, mesh=(10, 20), steps: int = 50, rtol: float = 1e-11,

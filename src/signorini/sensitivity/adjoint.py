@@ -91,7 +91,7 @@ class Adjoint:
         self._upd_vjp = jax.jit(upd_vjp)
         self._wp_vjp = jax.jit(wp_vjp)
         self._init_vjp = jax.jit(init_vjp)
-        self._cases = m._cases
+        self._cases = m.compiled.cases
 
     def backward(self, solution, params_ext: dict, selected, *, solver="auto"):
         """d(sum over ``selected`` increments of G_n)/d(params_ext) by one backward pass.

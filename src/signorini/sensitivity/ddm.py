@@ -38,7 +38,7 @@ def proportional_parameter(model) -> str | None:
         return None
     spec = getattr(model.material, field)
     if not isinstance(spec, str) or list(model.material.specs()).count(spec) != 1 \
-            or spec in model._shape_names:
+            or spec in model.shape_names:
         return None
     return spec
 
@@ -85,7 +85,7 @@ class DDM:
         # A linear body's internal forces are K_e(phi) u_e: along a load path their
         # pseudo-load is (dK_e/dphi_k) u_e + K_e du_e/dphi_k, with dK_e/dphi_k
         # computed once per parameter values (``reuse_stiffness``)
-        self._dke_fn = jax.jit(jax.vmap(lambda p, e: jax.jvp(model._stiffness, (p,), (e,))[1],
+        self._dke_fn = jax.jit(jax.vmap(lambda p, e: jax.jvp(model.compiled.stiffness, (p,), (e,))[1],
                                         (None, 0)))
         self._dke = None  # (key, names, (n, n_cells, 8, 8) NumPy)
         self._proportional = proportional_parameter(model)
@@ -137,7 +137,7 @@ class DDM:
         if m.prescribed.size:
             w_dot[:, m.prescribed] = np.asarray(self._wp_dot(params, t, e))
         # friction: the branch of every node fixed as in the converged tangent
-        cases = m._cases(w, params, t, state_n) if m.has_contact_history else None
+        cases = m.compiled.cases(w, params, t, state_n) if m.has_contact_history else None
         P = self._pseudo_loads(w, params, t, state_n, cases, w_dot, e, state_dot_n, reuse_stiffness)
         # the free rows with contiguous columns: a take along the last axis (fancy
         # indexing on that axis cost 0.34 ms at 56k DOFs, this 0.06 ms)

@@ -49,7 +49,7 @@ class SwitchDetector:
         surface], "elastic_plastic": [cell, ...]} at a converged increment (global
         node numbers; cells with at least one Gauss point on the yield surface)."""
         m = self.model
-        surf, ratio = m._switch_fields(w, params, t, state_n)
+        surf, ratio = m.compiled.switch_fields(w, params, t, state_n)
         surf = [{k: np.asarray(v) for k, v in f.items()} for f in surf]
         p_max = max((float(np.max(f["p_N"], initial=0.0)) for f in surf), default=0.0)
         weak, stick = [], []
