@@ -106,7 +106,7 @@ def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
     """A coarse level whose Newton fails is recorded as failed; the increments it
     converged still guide the next mesh, the rest use the predictor, and the
     fine path is the one from rest."""
-    solve_module = sys.modules["signorini.algorithms.stepping"]
+    solve_module = sys.modules["signorini.algorithms.coarse_to_fine"]  # the solve it calls
     real = solve_module.solve
     coarse, fine = hertz_friction_problem(refine=0, n_fine=12), hertz_friction_problem(refine=0)
 
@@ -129,7 +129,7 @@ def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
 def test_a_coarse_level_that_converges_nothing_keeps_the_guide_before(monkeypatch):
     """Three levels, the middle one failing in its first increment: the finest is
     guided by the coarsest (before: by nothing)."""
-    solve_module = sys.modules["signorini.algorithms.stepping"]
+    solve_module = sys.modules["signorini.algorithms.coarse_to_fine"]  # the solve it calls
     real = solve_module.solve
     pbs = [hertz_friction_problem(refine=0, n_fine=8), hertz_friction_problem(refine=0, n_fine=12),
            hertz_friction_problem(refine=0)]
