@@ -307,12 +307,7 @@ def _resolve_reexported(app, env, node, contnode):
 # fixed in the source; the warning is dropped so that ``-W`` passes meanwhile.
 # Delete an entry once its docstring is fixed (a stale entry does nothing).
 
-DOCSTRING_WARNINGS_TO_FIX_IN_SRC = [
-    # "Others as in :func:`signorini.solve`." inside ``Args:`` is read as a parameter
-    ("signorini.algorithms.uzawa.solve_uzawa", "Field list ends without a blank line"),
-    # "Attributes (besides those of ...):" is not a napoleon section header
-    ("signorini.model.kernels.Model", "Definition list ends without a blank line"),
-]
+DOCSTRING_WARNINGS_TO_FIX_IN_SRC: list[tuple[str, str]] = []
 
 
 class _KnownDocstringWarnings(logging.Filter):

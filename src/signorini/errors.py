@@ -39,7 +39,7 @@ class ConvergenceError(SolverError):
     """Newton did not converge, even after cutting the load step.
 
     Attributes:
-        partial: the :class:`~signorini.solution.Solution` holding every
+        partial: the :class:`~signorini.algorithms.solution.Solution` holding every
             increment converged before the failure (may have no increments).
     """
 
@@ -62,5 +62,5 @@ class SignoriniWarning(UserWarning):
     deep initial penetration, tunnelling, a load path too coarse for friction).
 
     Every such warning is also logged on the ``signorini`` logger and kept in
-    :attr:`signorini.solution.Solution.warnings` (and so in ``summary.json``).
+    :attr:`signorini.algorithms.solution.Solution.warnings` (and so in ``summary.json``).
     """

@@ -157,7 +157,7 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
             :class:`~signorini.Adjoint` (no forward sensitivities: the solve keeps
             what a later backward pass needs, every ``checkpoint``-th history
             state and, with ``factors="store"``, every factorisation).
-        options: :class:`~signorini.newton.NewtonOptions` (tolerances, iteration
+        options: :class:`~signorini.algorithms.newton.NewtonOptions` (tolerances, iteration
             and step-cutting budgets).
         solver: linear solver: ``"auto"`` (the fastest installed: PARDISO, else
             SuperLU), a name (``pardiso``, ``superlu``, ``umfpack``), a
@@ -184,7 +184,7 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
             is used. Only the start changes, not the result.
 
     Returns:
-        A :class:`~signorini.solution.Solution` with every converged increment;
+        A :class:`~signorini.algorithms.solution.Solution` with every converged increment;
         ``solution.warnings`` lists anything suspicious found on the way.
 
     Raises:

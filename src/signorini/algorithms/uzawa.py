@@ -79,7 +79,8 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
         problem: a problem whose contact surface uses :class:`UzawaPenalty`.
         tol: outer loop stops when max |lam^{k+1} - lam^k| <= tol * max |lam^{k+1}|.
         max_outer: outer iterations per increment before giving up.
-        Others as in :func:`signorini.solve`.
+
+    The other arguments are those of :func:`signorini.solve`.
     """
     t_start = time.perf_counter()
     model = model_for(problem)

@@ -1,6 +1,6 @@
 """Problem description files: a contact problem, its solve and its outputs in TOML.
 
-:func:`load` reads a file into a :class:`~signorini.problem.Problem` and a
+:func:`load` reads a file into a :class:`~signorini.model.problem.Problem` and a
 :class:`RunConfig`; :func:`run` also solves it (with DDM sensitivities) and
 writes the results into a directory. ``signorini run FILE --out DIR`` calls
 :func:`run`.
@@ -74,7 +74,7 @@ name of a parameter of ``[params]``, which makes it a design variable):
     here (:class:`~signorini.errors.UnknownParameterError` otherwise).
 ``[mesh]`` (required)
     either ``file = "body.msh"`` (relative to the TOML file; read by
-    :func:`signorini.io.read_mesh`: gmsh physical groups of lines become edge
+    :func:`signorini.fem.meshfile.read_mesh`: gmsh physical groups of lines become edge
     and node sets, of points node sets, plus ``all``), or
     ``type = "rectangle"``, ``x = [x0, x1]``, ``y = [y0, y1]`` (numbers),
     ``nx``, ``ny`` (cells, integers >= 1): sets ``left``, ``right``,
@@ -104,7 +104,7 @@ name of a parameter of ``[params]``, which makes it a design variable):
     ``steps`` (int >= 1, default 1), ``sensitivities`` (list of parameter
     names), and the Newton options ``rtol``, ``atol``, ``max_iter``,
     ``max_cuts``, ``predictor`` (``"extrapolate"`` | ``"none"``) (defaults of
-    :class:`~signorini.newton.NewtonOptions`).
+    :class:`~signorini.algorithms.newton.NewtonOptions`).
 ``[[response]]``
     ``name`` (unique), ``type``: ``"max_pressure"`` (largest p_N of a surface,
     with its DDM sensitivity at that node) or ``"normal_force"`` (sum of p_N
@@ -627,7 +627,7 @@ def load(path) -> tuple[Problem, RunConfig]:
     """Read a problem file (schema: module docstring).
 
     Returns:
-        (problem, config): the :class:`~signorini.problem.Problem` at the
+        (problem, config): the :class:`~signorini.model.problem.Problem` at the
         nominal parameter values and the :class:`RunConfig`.
 
     Raises:

@@ -305,7 +305,7 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
               n_workers=None, sequential: bool = False, client=None) -> Path:
     """Run ``signorini COMMAND`` at every grid point and collect the summaries.
 
-    Point k runs ``signorini.cli.main([command, "--out", out/point_<k>, "-q",
+    Point k runs ``signorini.app.cli.main([command, "--out", out/point_<k>, "-q",
     "--set", "NAME=VALUE", ..., *extra_args])`` (names starting with ``--`` are
     passed as options instead, see the module docstring), as an independent
     Dask task on a LocalCluster (default: ``n_workers`` = os.cpu_count()

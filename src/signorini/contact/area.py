@@ -3,7 +3,7 @@
 A_S belongs to contact node S and its two neighbours N1, N2 along the boundary
 of the *reference* mesh (paper section 4, docs/theory.md §5): in plane strain
 (per unit thickness) A_S = (l1 + l2) / 2, and l1 / 2 at an end node; the
-axisymmetric form is in :mod:`signorini.kinematics`. It depends on the design
+axisymmetric form is in :mod:`signorini.fem.kinematics`. It depends on the design
 parameters through X(phi), never on the displacements.
 """
 
@@ -28,8 +28,8 @@ def equivalent_areas(X, edges: np.ndarray, nodes: np.ndarray | None = None, kine
         X: (n_nodes, 2) reference coordinates (JAX or NumPy, may depend on phi).
         edges: (n_edges, 2) boundary edges of the contact surface.
         nodes: (n_contact,) sorted contact nodes (default ``contact_nodes(edges)``).
-        kinematics: :class:`~signorini.kinematics.PlaneStrain` (default, per unit
-            thickness) or :class:`~signorini.kinematics.Axisymmetric` (full 2 pi).
+        kinematics: :class:`~signorini.fem.kinematics.PlaneStrain` (default, per unit
+            thickness) or :class:`~signorini.fem.kinematics.Axisymmetric` (full 2 pi).
     """
     edges = np.asarray(edges)
     if nodes is None:

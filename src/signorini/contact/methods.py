@@ -114,7 +114,7 @@ class Contact:
     """A contact surface: a boundary-edge set of the body against a rigid obstacle.
 
     Attributes:
-        obstacle: :class:`~signorini.obstacles.Circle` or :class:`~signorini.obstacles.Line`.
+        obstacle: :class:`~signorini.contact.obstacles.Circle` or :class:`~signorini.contact.obstacles.Line`.
         edges: name of the mesh edge set whose nodes are contact nodes.
         method: :class:`AugmentedLagrangian` (default) or :class:`Penalty`.
         kinematics: ``"finite"`` (gap at the current position X + u),

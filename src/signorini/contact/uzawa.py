@@ -6,7 +6,7 @@ solves for the displacements,
     R_U = grad Pi + sum_i A_i min(lam_i^k + eps g_i(U), 0) grad g_i = 0,
 
 and then updates lam^{k+1} = min(lam^k + eps g(U^{k+1}), 0) in an outer loop
-(:func:`signorini.uzawa.solve_uzawa`). It is here as a comparator for the
+(:func:`signorini.algorithms.uzawa.solve_uzawa`). It is here as a comparator for the
 single-Newton augmented Lagrangian: the frozen multipliers travel in the
 model's per-node history slot, so the same residual, tangent and DDM
 pseudo-load code serves both methods.
@@ -23,7 +23,7 @@ from .methods import _Regularised
 @dataclass(frozen=True)
 class UzawaPenalty(_Regularised):
     """Frozen-multiplier contact law of Uzawa's inner loop; use with
-    :func:`signorini.uzawa.solve_uzawa` (not :func:`signorini.solve`)."""
+    :func:`signorini.algorithms.uzawa.solve_uzawa` (not :func:`signorini.solve`)."""
 
     n_multipliers: int = field(default=0, init=False)
     has_history: bool = field(default=True, init=False)

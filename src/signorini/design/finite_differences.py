@@ -18,9 +18,9 @@ def finite_difference(problem, name: str, quantity: Callable, *, step: float | N
     """Central finite difference of ``quantity(solution)`` with respect to a parameter.
 
     Args:
-        problem: the :class:`~signorini.problem.Problem` (nominal values).
+        problem: the :class:`~signorini.model.problem.Problem` (nominal values).
         name: parameter to perturb.
-        quantity: maps a :class:`~signorini.solution.Solution` to an array.
+        quantity: maps a :class:`~signorini.algorithms.solution.Solution` to an array.
         step: absolute step; default ``rel_step * max(|phi|, 1)``.
         **solve_kwargs: passed to :func:`signorini.solve` (use the same load
             stepping as the DDM run and a tight ``NewtonOptions(rtol=...)``).

@@ -44,7 +44,7 @@ class Gradient:
         value: G (sum over the selected increments).
         grad: name -> dG/dphi (a float; for ``"nodes"`` an (n_nodes, 2) array).
         mode: ``"ddm"``, ``"adjoint"`` or ``"fd"``.
-        solution: the forward :class:`~signorini.solution.Solution` (nominal values).
+        solution: the forward :class:`~signorini.algorithms.solution.Solution` (nominal values).
         timing: seconds: ``forward`` (the solve), ``gradient`` (the DDM's share of the
             solve — factorisation, pseudo-loads, back-substitutions, history
             sensitivities —, the backward pass, or the perturbed solves) and, for the

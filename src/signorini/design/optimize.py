@@ -1,6 +1,6 @@
 """Design optimisation with exact DDM gradients (paper §5.3).
 
-:class:`Objective` turns a :class:`~signorini.problem.Problem`, a list of
+:class:`Objective` turns a :class:`~signorini.model.problem.Problem`, a list of
 parameter names and a response into the ``fun``/``jac`` pair that
 :func:`scipy.optimize.minimize` expects::
 
@@ -156,16 +156,16 @@ class Objective:
     """F(x) = response of the solved problem at the parameters ``names = x``, with its gradient.
 
     Args:
-        problem: the :class:`~signorini.problem.Problem` at its nominal values;
+        problem: the :class:`~signorini.model.problem.Problem` at its nominal values;
             a design point x is solved as ``problem.with_params(**dict(zip(names, x)))``
             (same mesh and components, so the compiled model is reused).
         wrt: the design parameters (they must be parameters of ``problem``).
         response: either a factory ``G(model) -> fn`` (a callable of one argument,
             called once per compiled model, e.g. ``lambda m: forging.objective(m, nodes)``)
             or a ready ``fn(w, params, t)``; ``fn`` must return a scalar and be
-            JAX-traceable (see :meth:`~signorini.solution.Solution.response`).
+            JAX-traceable (see :meth:`~signorini.algorithms.solution.Solution.response`).
         steps: load increments of every solve.
-        options: :class:`~signorini.newton.NewtonOptions` (default ``NewtonOptions()``).
+        options: :class:`~signorini.algorithms.newton.NewtonOptions` (default ``NewtonOptions()``).
         solver: linear solver name or object.
         response_key: key under which the compiled response is cached on the
             model (default: a key unique to this objective).
@@ -339,7 +339,7 @@ class Objective:
         return min(good, key=lambda r: r.F) if good else None
 
     def solution(self, x=None):
-        """The :class:`~signorini.solution.Solution` at x (default: the best point).
+        """The :class:`~signorini.algorithms.solution.Solution` at x (default: the best point).
         The last and the best solutions are kept; another point is solved again
         (with sensitivities in ``"ddm"`` mode; recorded as kind ``"final"``)."""
         if x is None:

@@ -1,7 +1,7 @@
 """Isoparametric 4-node quadrilateral: quadrature, formulations, element kernels.
 
 The element is written once for every kinematics (plane strain,
-axisymmetric: :mod:`signorini.kinematics`), formulation (:class:`Standard`
+axisymmetric: :mod:`signorini.fem.kinematics`), formulation (:class:`Standard`
 2x2 Gauss, :class:`FBar` = selective reduced integration of the volume change)
 and material (``update(H, h_n, mp) -> (P, h)``, :mod:`signorini.materials`):
 

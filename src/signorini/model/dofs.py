@@ -1,4 +1,4 @@
-"""The layout of the unknowns of a :class:`~signorini.problem.Problem`.
+"""The layout of the unknowns of a :class:`~signorini.model.problem.Problem`.
 
 ``w`` (n_dof,) = [U (2 per node, node-major), Lambda (the multipliers of each
 contact surface, node-major)]. Prescribed displacement DOFs are part of ``w``

@@ -13,14 +13,14 @@ with the state a pytree ``(w_n, contact history, material history)``:
 * material history: (n_cells, 4, n_state) at the Gauss points (plasticity:
   C_p^{-1} and alpha), or None for materials without history.
 
-Residual and update are built from per-element kernels (:mod:`signorini.element`,
+Residual and update are built from per-element kernels (:mod:`signorini.fem.element`,
 which take the kinematics and the formulation) and per-contact-node kernels
 (gradients of the contact pseudo-potentials), ``vmap``-ed. Newton gets the
 kernels' Jacobians block by block (:meth:`Model.local_tangents`, assembled
 sparsely once per pattern); the DDM pseudo-load is a JVP of ``residual`` in
 (params, w_p, state_n), the history sensitivity a JVP of ``update`` in
 (w, params, state_n) (:mod:`signorini.sensitivity`). The DOF layout lives in
-:mod:`signorini.dofs`.
+:mod:`signorini.model.dofs`.
 """
 
 from __future__ import annotations
@@ -64,12 +64,15 @@ class Compiled:
 class Model:
     """Kernels, DOF layout and sparsity pattern of a :class:`Problem`.
 
-    Attributes (besides those of :class:`~signorini.dofs.DofLayout`):
+    Besides those of its :class:`~signorini.model.dofs.DofLayout` (``layout``):
+
+    Attributes:
         kinematics, formulation: of the elements (plane strain / axisymmetric,
             standard / F-bar).
         pattern: the sparsity pattern of the free-free tangent.
         fext: compiled external forces ``fext(X, params, t)``.
         cache: compiled DDM / response functions, reused across solves.
+        compiled: the compiled programs solvers and outputs call (:class:`Compiled`).
     """
 
     def __init__(self, problem: Problem):
@@ -130,7 +133,7 @@ class Model:
 
     @property
     def _tangential(self):
-        """Per surface: its friction mask (see :class:`signorini.dofs.Surface`)."""
+        """Per surface: its friction mask (see :class:`signorini.model.dofs.Surface`)."""
         return [s.tangential for s in self.surfaces]
 
     def split(self, w):

@@ -29,18 +29,18 @@ class Problem:
         mesh: the reference mesh (at the nominal parameter values).
         material: e.g. :class:`~signorini.materials.LinearElastic`.
         params: name -> nominal value of every named parameter.
-        fixed: prescribed displacements (:class:`~signorini.loads.Fixed`).
-        loads: boundary loads (:class:`~signorini.loads.Pressure`, ``Traction``).
+        fixed: prescribed displacements (:class:`~signorini.fem.loads.Fixed`).
+        loads: boundary loads (:class:`~signorini.fem.loads.Pressure`, ``Traction``).
         contact: contact surfaces (:class:`~signorini.contact.Contact`).
         shape: name -> design velocity field V (n_nodes, 2). The reference
             coordinates are X(phi) = X0 + sum_k (phi_k - phi_k0) V_k, where
             phi_k0 is the value of ``k`` in ``params`` when the mesh was made
             (``shape_nominal``, defaulting to ``params``).
         shape_nominal: nominal values of the shape parameters.
-        kinematics: :class:`~signorini.kinematics.PlaneStrain` (default) or
-            :class:`~signorini.kinematics.Axisymmetric`.
-        formulation: :class:`~signorini.element.Standard` (2x2 Gauss) or
-            :class:`~signorini.element.FBar`; default (None): F-bar for
+        kinematics: :class:`~signorini.fem.kinematics.PlaneStrain` (default) or
+            :class:`~signorini.fem.kinematics.Axisymmetric`.
+        formulation: :class:`~signorini.fem.element.Standard` (2x2 Gauss) or
+            :class:`~signorini.fem.element.FBar`; default (None): F-bar for
             materials with history (plasticity), standard otherwise.
     """
     mesh: Mesh

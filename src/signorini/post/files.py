@@ -92,7 +92,7 @@ def write_pvd(solution, path, increments=None) -> Path:
     ParaView to step through the load history.
 
     Args:
-        solution: a :class:`~signorini.solution.Solution` (possibly the
+        solution: a :class:`~signorini.algorithms.solution.Solution` (possibly the
             ``partial`` of a :class:`~signorini.errors.ConvergenceError`).
         path: the ``.pvd`` file to write (its directory must exist).
         increments: indices into ``solution.increments`` to write (default: all).

@@ -51,7 +51,7 @@ def validate(params: dict) -> None:
 def objective_for(mu: float, *, mesh=(10, 20), steps: int = 50, rtol: float = 1e-11,
                   solver="auto", gradient: str = "ddm", history=None, append: bool = False,
                   label: str | None = None) -> Objective:
-    """The :class:`~signorini.optimize.Objective` F(phi0..phi4) at friction ``mu``."""
+    """The :class:`~signorini.design.optimize.Objective` F(phi0..phi4) at friction ``mu``."""
     pb = base_problem(tuple(mesh)).with_params(mu=float(mu))
     lat = fg.lateral_nodes(pb)
     return Objective(pb, list(fg.SHAPE), lambda model: fg.objective(model, lat), steps=steps,

@@ -190,7 +190,7 @@ MAX_COARSE_LEVELS = 3
 def coarse_levels(refine: int, n_fine: int = 24) -> list[tuple[int, int]]:
     """(refine, n_fine) of the meshes that start a one-step solve, coarsest first:
     the cell count across the fine zone halved down to :data:`COARSEST`, at most
-    :data:`MAX_COARSE_LEVELS` of them (see :mod:`signorini.multilevel`)."""
+    :data:`MAX_COARSE_LEVELS` of them (see :mod:`signorini.algorithms.coarse_to_fine`)."""
     out, r, n = [], refine, n_fine
     while len(out) < MAX_COARSE_LEVELS:
         if r > 0:

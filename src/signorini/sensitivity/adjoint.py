@@ -97,7 +97,7 @@ class Adjoint:
         """d(sum over ``selected`` increments of G_n)/d(params_ext) by one backward pass.
 
         Args:
-            solution: a converged :class:`~signorini.solution.Solution` of the model
+            solution: a converged :class:`~signorini.algorithms.solution.Solution` of the model
                 (its increments' unknowns and states; factors if kept).
             params_ext: the parameter dict (JAX), possibly with ``"nodes"``.
             selected: increment indices whose G_n enter the sum.

@@ -7,7 +7,7 @@ After each converged increment, for all design parameters phi_k at once::
 
 with K the exact tangent at the converged state, already factorised. No
 iterations: the multipliers' sensitivities come out of the same solve.
-:func:`signorini.sensitivity.fd.finite_difference` computes the same
+:func:`signorini.design.finite_differences.finite_difference` computes the same
 derivatives by central differences, for checking.
 """
 

@@ -255,7 +255,7 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
         solver, rtol: linear solver and Newton tolerance of the forging solves.
         mapper: ``mapper(out, mus, kwargs) -> [summary per mu]`` running
             :func:`optimise_mu` for every mu (default: one after another here;
-            :func:`signorini.sweep.optimise_mus_parallel` passes Dask tasks).
+            :func:`signorini.app.commands.optimise_forging.optimise_mus_parallel` passes Dask tasks).
         extra_summary: entries added to the collected summary.
 
     Returns:
