@@ -52,8 +52,8 @@ import numpy as np  # noqa: E402
 
 def to_device(x):
     """A NumPy array (or scalar) as a JAX array, by a plain transfer: ``jnp.asarray``
-    compiles a conversion program for every new shape (10-20 ms each on a first
-    run; two dozen of them in a CLI run). JAX arrays and tracers pass unchanged."""
+    compiles a conversion program for every new shape, a compilation per shape on
+    a first run (docs/theory.md §10.5). JAX arrays and tracers pass unchanged."""
     if isinstance(x, jax.Array):
         return x
     return jax.device_put(np.asarray(x))

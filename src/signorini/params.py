@@ -71,7 +71,8 @@ def unit_tangents(params: Mapping, names: list[str]) -> dict:
 
     Returns a dict of arrays of shape ``(len(names),)`` to be ``vmap``-ed over.
     Built once per (parameter keys, names) and reused: the DDM asks for it
-    twice per increment, and building it op by op cost 0.3 ms each time.
+    twice per increment, and building it afresh would transfer a new small
+    array to the device per parameter each time.
     """
     return dict(_unit_tangents(tuple(params), tuple(names)))
 

@@ -4,9 +4,10 @@ Newton's cost in a one-step contact solve is set by how far its first active
 set is from the final one: from the undeformed state only the touching node is
 closed, the first iterate penetrates over about twice the contact width, and
 every further iteration releases only the outermost closed nodes, so the
-count grows with the number of nodes in the contact zone (7 at 5k DOFs, 11 at
-225k). Started from the solution of a coarser mesh, interpolated, the active
-set is off by a node or two and Newton needs 2-3 iterations on the fine mesh.
+count grows with the number of nodes in the contact zone, that is with the
+mesh (docs/theory.md §10.3). Started from the solution of a coarser mesh,
+interpolated, the active set is off by a node or two and Newton needs 2-3
+iterations on the fine mesh.
 
 The same holds for every later increment of a load path: the contact zone
 moves by several nodes per increment on a fine mesh, and an extrapolation of

@@ -90,8 +90,9 @@ class Prolongation:
     @classmethod
     def between(cls, coarse_model, fine_model) -> "Prolongation":
         """The prolongation of these two models, built once and kept by the fine
-        model (it depends only on their meshes, not on parameter values: 75 ms of
-        a 230 ms coarse-to-fine solve at 56k DOFs when rebuilt every solve)."""
+        model: it depends only on their meshes, not on parameter values, and
+        rebuilt in every solve it would be a large share of a coarse-to-fine solve
+        (docs/theory.md §10.3)."""
         key = ("prolongation", id(coarse_model))
         kept = fine_model.cache.get(key)
         if kept is None or kept.coarse_model is not coarse_model:

@@ -76,7 +76,7 @@ def _structure(obj, depth: int = 0):
     built again for other parameter values), so they share one compiled model.
     Arrays are keyed by their bytes, dataclasses by their fields, a function by
     its code and closure only when it reads no global name (anything else by its
-    identity, as before: never a false match)."""
+    identity: never a false match)."""
     if depth > 12:
         return ("id", id(obj))
     if obj is None or isinstance(obj, (bool, int, float, complex, str, bytes)):
@@ -114,8 +114,8 @@ def model_for(problem: Problem) -> Model:
     """The compiled model of a problem, reused for problems that differ only in
     parameter values (finite differences, optimisation loops), also when the
     problem is built again from scratch for new values (:func:`_structure`:
-    mesh, definitions and shape fields compared by content; 10x faster on the
-    second build at the default Hertz mesh: no retracing, no recompilation)."""
+    mesh, definitions and shape fields compared by content: the second build
+    neither retraces nor recompiles; docs/theory.md §10.5)."""
     try:
         key = structure_key(problem)
     except TypeError:  # unhashable user component: no caching
@@ -233,9 +233,10 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
 def kept_solver(model: Model, solver, stack: contextlib.ExitStack):
     """The linear solver of a solve. A solver given by name is the model's own
     instance, so the symbolic analyses it keeps serve every later solve of the
-    model (finite differences, optimisation, a parameter loop: 90 of 200 ms per
-    solve at 56k DOFs). While one solve uses it (a solve within a solve, another
-    thread), others get a fresh instance. A solver object is used as given."""
+    model (finite differences, optimisation, a parameter loop), which then pays
+    for numeric factorisations only. While one solve uses it (a solve within a
+    solve, another thread), others get a fresh instance. A solver object is used
+    as given."""
     if not isinstance(solver, str):
         return get_solver(solver)
     key = ("solver", solver)
@@ -316,15 +317,16 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         started = first and initial is not None
         # a coarser solve of the same path: w_n + P(w^c_{n+1} - w^c_n)
         guided = guides is not None and not started and guides.covers(t_new)
-        # else linear extrapolation of the last two converged states (quadratic through
-        # three was measured worse: 5.5 instead of 3.0 iterations per increment, frictional
-        # Hertz 60k DOFs, 10 increments; zones growing like sqrt(t) are not smooth in t)
+        # else linear extrapolation of the last two converged states (a quadratic through
+        # three needs more Newton iterations on the frictional Hertz path: zones growing
+        # like sqrt(t) are not smooth in t; docs/theory.md §10.3)
         predicted = (not started and not guided and options.predictor == "extrapolate"
                      and w_prev is not None)
         if started or guided or predicted:
             # the reference norm of the convergence test is that of the unpredicted start
             # (the last state under the new load), so that a better start does not make
-            # the test stricter (measured: forging 40x80 then stagnated at rtol 1e-11)
+            # the test stricter than the round-off floor, where Newton would stagnate
+            # (docs/theory.md §10.3)
             R0 = _residual(model, w_trial, params, t_new, state_n)[model.free]
             ref = max(ref, float(np.linalg.norm(R0 * weights[model.free])))
             if started:
@@ -368,7 +370,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
             inc.switches = switches(to_device(w_trial), params, t_new, state_n)
         t_k = time.perf_counter()
         K = model.pattern.assemble(blocks) if keep_factors or ddm is not None else None
-        t_k = time.perf_counter() - t_k  # booked with the DDM's factorisation, as before
+        t_k = time.perf_counter() - t_k  # booked with the DDM's factorisation, which it serves
         # the pseudo-loads need no factorisation: computed first, so that each solve
         # follows its factorisation while MKL's threads are awake (DDM.pseudo_loads)
         try:
@@ -443,7 +445,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
 def _residual(model, w, params, t, state_n) -> np.ndarray:
     """R(w) as NumPy. A linear body takes it from the Newton kernel (elements by
     K_e u_e, tangents of the contact nodes only), which is compiled anyway: one
-    kernel less to compile on a first run (0.28 s at 5k DOFs)."""
+    kernel less to compile on a first run."""
     if model.linear_elements:
         return model.local_tangents(w, params, t, state_n)[0]
     return np.asarray(model.compiled.residual(to_device(w), params, t, state_n))

@@ -89,7 +89,7 @@ def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
     check_names(names, problem.params, "sensitivities")
     params = as_jax(problem.params)
     model.check(problem.params)
-    lin = TangentSolver(get_solver(solver), symmetric_candidate=False)  # as before: general LU
+    lin = TangentSolver(get_solver(solver), symmetric_candidate=False)  # the general LU
     s = model.surfaces[0]
     method = s.contact.method
     ddm = ddm_for(model, names)

@@ -37,9 +37,9 @@ Why a band: every node that slipped in the last increment starts the next one
 (from the converged state, without a predictor) exactly on the disc edge,
 |lam^_T| = rho to round-off (measured: relative margins below 7.3e-15 on the
 frictional Hertz). With the plain test |lam^_T| <= rho the branch of such a node
-was decided by the last bits of the arithmetic, which differ between two
+would be decided by the last bits of the arithmetic, which differ between two
 compiled programs of the same formula: the flags and the tangent computed in
-one program gave a singular first tangent (docs/theory.md §3.4). The band
+one program can then give a singular first tangent (docs/theory.md §3.4). The band
 sends these ties to slip, their natural continuation, whatever the rounding.
 """
 

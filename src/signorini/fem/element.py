@@ -191,8 +191,9 @@ def element_update(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formu
 def _forces(w, dNdX, hoop, P2, P33):
     """r (4, 2) = sum_g w B^T P from the in-plane stresses P2 (g, 2, 2) and P_33
     (g,): r_ai = sum_g w P_ij dN_a/dX_j (+ w P_33 hoop_a for i = r, axisymmetric).
-    A broadcast sum, not an einsum: XLA on the CPU runs the vmapped einsum's tiny
-    batched products 1.7x slower (the residual of 27,816 cells: 12.3 against 7.2 ms)."""
+    A broadcast sum, not an einsum: XLA on the CPU runs the vmapped einsum as
+    many tiny batched products, slower than the fused broadcast (docs/theory.md
+    §10.2)."""
     r = jnp.sum((w[:, None, None, None] * P2[:, None]) * dNdX[:, :, None, :], axis=(0, 3))
     if hoop is not None:
         r = r.at[:, 0].add(jnp.sum((w * P33)[:, None] * hoop, axis=0))
@@ -211,7 +212,9 @@ def element_residual_tangent(ue, Xe, material, mp, hn=None, kinematics=PLANE_STR
     Standard formulation: H_g = B_g u_e is linear, so autodiff is applied at the
     material point only: P and C = dP/dH per Gauss point (at fixed h_n), then
     r = sum_g w_g B^T P, K = sum_g w_g B^T C B (differentiating the whole element
-    in forward mode cost 3-4x more). F-bar: the same at the Gauss point, on the
+    in forward mode would push 8 directions through the geometry as well, instead
+    of the few active components of H through the material). F-bar: the same at
+    the Gauss point, on the
     2 x n_active components of (H_g, H_0) that Hbar_g depends on
     (:func:`_fbar_residual_tangent`).
     """
@@ -244,8 +247,9 @@ def _fbar_residual_tangent(ue, Xe, material, mp, hn, kinematics, formulation):
     of the F-bar map). Then r = sum_g w_g [B_g; B_0]^T S_g and
     K = sum_g w_g [B_g; B_0]^T (dS_g/dv) [B_g; B_0]. FBar's map is differentiated
     by hand (:meth:`FBar.linearization`), another formulation's by autodiff. The
-    forward-mode Jacobian of the whole element (8 directions through geometry,
-    F-bar map, return map and its VJP) cost 3x as much (docs/theory.md §10.2).
+    forward-mode Jacobian of the whole element would push 8 directions through
+    the geometry, the F-bar map, the return map and its VJP, the split pushes
+    derivatives of the material point only (docs/theory.md §10.2).
     """
     rows, cols = (np.array(c) for c in zip(*kinematics.active))
     na = rows.size

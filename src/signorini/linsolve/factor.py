@@ -57,7 +57,8 @@ class Factor:
         a lower bound that costs a quarter: |K_ii|, and the exact maximum only in
         the rows whose diagonal is zero (the multipliers of closed contact nodes).
         A lower bound overstates the backward error, so it can only ask for the
-        exact value, never hide a residual (1.0 against 0.09 ms at 56k DOFs)."""
+        exact value, never hide a residual; it reads the diagonal (and the few
+        rows without one) where the exact value reads every entry of K."""
         for key in ((transpose, exact), (transpose, True)):  # the exact values serve as a bound
             if key in self._norm:
                 return self._norm[key]
@@ -99,14 +100,12 @@ class Factor:
         row maximum computed, so the value returned is the exact backward error
         or an upper bound of it that is below the tolerance."""
         if x.ndim == 2:  # column by column: NumPy's reductions and broadcasts over a
-            # short last axis are slow (3 columns at 225k DOFs: 7.2 -> 0.8 ms)
+            # short last axis are slow, a contiguous column is one fast pass
             return max((self._backward_error(r[:, j], x[:, j], b[:, j], transpose)
                         for j in range(x.shape[1])), default=0.0)
         # two scratch vectors kept for every column and solve of this factor: no fresh
         # temporaries, which page-fault whenever the C library has given freed memory
-        # back (one column at 56k DOFs then cost 0.48 ms, 300 page faults, against
-        # 0.09 ms; in the DDM's solve they did not fault: three columns 0.4-0.5 ms
-        # either way)
+        # back, and then cost several times the arithmetic on them (docs/theory.md §10.1)
         if self._scratch is None:
             self._scratch = np.empty((2, self.n))
         den, ratio = self._scratch
@@ -204,8 +203,7 @@ def diagonal(K) -> np.ndarray:
 
 def _residual(K, x, b):
     """b - K x, column by column for several right-hand sides (SciPy's one-vector
-    product is faster than its several-vector one: 6 against 8 ms for 3 columns
-    at 225k DOFs)."""
+    product, repeated, is faster than its several-vector one on a few columns)."""
     if x.ndim == 1:
         return b - K @ x
     r = np.empty_like(b, dtype=float)

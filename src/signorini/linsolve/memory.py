@@ -1,10 +1,10 @@
 """Estimates of a run's size before it is built, and a guard against runs the
 machine cannot hold.
 
-The peak-memory model (of the solver ``auto`` picks) is fitted to
-measurements of the Hertz benchmark; with SciPy's SuperLU on 2 cores (``benchmarks/bench_hertz.py``: 0.4 GB at 5k DOFs,
-0.9 GB at 56k, 2.7 GB at 225k); it grows a little faster than linearly, like
-the fill-in of a sparse LU of a 2-D mesh. It is an estimate, printed as one.
+The peak-memory model (of the solver ``auto`` picks) is fitted to the peak
+resident memory of the Hertz benchmark (``benchmarks/bench_hertz.py``, from 5k
+to 225k DOFs with SciPy's SuperLU); it grows a little faster than linearly,
+like the fill-in of a sparse LU of a 2-D mesh. It is an estimate, printed as one.
 """
 
 from __future__ import annotations
@@ -23,9 +23,10 @@ GB = 1024.0**3
 def estimated_peak_memory(n_dof: int, solver: str = "superlu") -> float:
     """Estimated peak resident memory in bytes of a solve with ``n_dof`` unknowns.
 
-    ``superlu``: fitted as described above. ``pardiso``: fitted to the Hertz
-    benchmarks with MKL PARDISO (0.41 GB at 5k DOFs, 0.79 at 56k, 1.77 at 225k,
-    5.4 at 0.9M symmetric; 6.8 GB for the frictional Hertz at 1.06M, LU)."""
+    ``superlu``: 0.5 GB + 1.1e-5 GB per DOF times (n_dof / 2e5)^0.25, fitted as
+    described above. ``pardiso``: 0.4 GB + 6.2e-6 GB per DOF, linear, fitted to
+    the Hertz benchmarks with MKL PARDISO (5k to 0.9M DOFs symmetric, and the
+    frictional Hertz at 1.06M DOFs, LU)."""
     n = max(int(n_dof), 1)
     if solver == "pardiso":
         return (0.4 + 6.2e-6 * n) * GB

@@ -26,9 +26,9 @@ def _mkl_rt_path() -> str | None:
     else the ``lib`` folder of this environment or of the user site; the newest
     version if several), or None.
 
-    A direct look costs under a millisecond; importing pypardiso and letting it
-    search (``find_library`` runs ``ldconfig``, then a recursive glob of the
-    environment) cost 0.7 s of every CLI start (0.43 s import, 0.26 s search)."""
+    A direct look is a few globs of known folders; importing pypardiso and letting
+    it search (``find_library`` runs ``ldconfig``, then a recursive glob of the
+    environment) is a large part of every CLI start (docs/theory.md §10.5)."""
     env = os.environ.get("PYPARDISO_MKL_RT")
     if env:
         return env
@@ -49,12 +49,11 @@ def _load_mkl():
     else found by pypardiso)."""
     # MKL's OpenMP threads wait this long (ms) for more work after a PARDISO call:
     # long enough to span the gap between a factorisation and its back-substitution,
-    # short enough not to hold a core during the JAX kernels that follow (the default,
-    # 200 ms, spread the solves at 5k DOFs over 0.064-0.20 s). 0 put the threads to
-    # sleep after every call: at 5k DOFs a back-substitution then took 0.57 instead
-    # of 0.20 ms and a factorisation 2.0 instead of 1.7 ms (the frictional Hertz, 10
-    # increments: 0.56 -> 0.50 s; no change at 56k). A value the user set is kept;
-    # read when MKL is loaded.
+    # short enough not to hold a core during the JAX kernels that follow (MKL's
+    # default, 200 ms, spins through them and takes a core from them). 0 would put
+    # the threads to sleep after every call, and on small meshes waking them costs
+    # more than the work; on large meshes the value hardly matters (docs/theory.md
+    # §10.1). A value the user set is kept; read when MKL is loaded.
     os.environ.setdefault("KMP_BLOCKTIME", "1")
     lib = None
     path = _mkl_rt_path()
@@ -109,10 +108,10 @@ class _MklProduct:
     """b - A x (``transpose``: b - A^T x) by MKL's sparse BLAS, for the check of a
     PARDISO solve.
 
-    It runs on MKL's OpenMP threads, like PARDISO: on two cores 2.5x SciPy's
-    one-thread product (3 columns at 56k DOFs: 0.37 against 1.03 ms; one column
-    0.14 against 0.34 ms). The handle refers to A's arrays without copying them;
-    it is made on the first product (0.02 ms) and destroyed with this object.
+    It runs on MKL's OpenMP threads, like PARDISO, where SciPy's product runs on
+    one thread, and takes several columns in one call. The handle refers to A's
+    arrays without copying them; it is made on the first product (cheap next to
+    the product) and destroyed with this object.
     Returns None where it cannot serve (64-bit indices, an MKL without the
     routines, a failed call): the caller then uses SciPy's product."""
 
@@ -184,10 +183,10 @@ _BLAS = None
 def openblas_single_thread():
     """NumPy's and SciPy's OpenBLAS on one thread for the duration.
 
-    Their idle threads spin after every BLAS call (even a vector norm) and took
-    one of two cores from the PARDISO factorisation that followed: measured 0.085
-    s instead of 0.043 s per numeric factorisation at 56k DOFs. signorini's own
-    BLAS work is vectors only, so one thread costs nothing."""
+    Their idle threads spin after every BLAS call (even a vector norm) and take
+    cores from the PARDISO factorisation that follows, slowing it down where the
+    cores are few (docs/theory.md §10.1). signorini's own BLAS work is vectors
+    only, so one thread costs nothing."""
     global _BLAS
     try:
         from threadpoolctl import ThreadpoolController  # optional at run time: tolerated if absent

@@ -88,12 +88,12 @@ class _Handle:
         fastest of the last column-by-column solves, or, before there is one, k
         single solves (x :attr:`COLUMNS_MARGIN`). Every :attr:`PROBE_EVERY`-th
         solve of several columns times the other way again: a block, or the
-        columns one by one if k single solves would now beat the block. Which is
-        faster depends on the machine's state, not on the factor: on the 2-core
-        test machine, at 56k DOFs, for the same factor, three columns took
-        7.4-7.9 ms as a block and 4.0-4.5 ms each alone in some processes,
-        10.4-11.3 ms and 2.9-3.3 ms in others (theory §10.2). Both give the same
-        solution to round-off, and every solve is checked (:class:`Factor`)."""
+        columns one by one if k single solves would beat the block. Which is
+        faster depends on the machine's state, not on the factor: for the same
+        factor, the block wins in some processes and the columns in others
+        (docs/theory.md §10.2), hence a choice by timing that keeps probing the
+        other way. Both give the same solution to round-off, and every solve is
+        checked (:class:`Factor`)."""
         k = 1 if b.ndim == 1 else b.shape[1]
         if k == 1:
             t0 = time.perf_counter()
@@ -188,7 +188,7 @@ class Pardiso(LinearSolver):
         """(positions, indptr, indices) of the upper triangle of the CSR pattern of A:
         its values are ``A.data.take(positions)``. Kept per pattern; an assembled
         tangent passes the same index arrays every iteration, found by identity
-        (comparing them cost 0.15 ms per factorisation at 56k DOFs)."""
+        (a comparison would read every index on every factorisation)."""
         key = (A.shape[0], A.nnz)
         up = self._upper.get(key)
         if up is None or not ((up[0] is A.indices or np.array_equal(up[0], A.indices))
@@ -210,7 +210,8 @@ class Pardiso(LinearSolver):
     def _csr(K):
         A = K.tocsr()
         # an assembled tangent says its indices are sorted (SparsityPattern.assemble);
-        # SciPy's own test of an unknown matrix costs 0.26 ms at 56k DOFs
+        # SciPy's own test of an unknown matrix would cost a pass over its indices on
+        # every factorisation
         return A if A.has_sorted_indices else A.sorted_indices()
 
     def _handle(self, mtype, n, indptr, indices, values) -> tuple[_Handle, bool]:
@@ -250,8 +251,9 @@ class Pardiso(LinearSolver):
 
         def analysis_values():
             # symmetric only: the general LU's matching pairs each multiplier row with
-            # one column, which no single active set suits (measured: as many perturbed
-            # pivots, ~50 per factorisation on the frictional Hertz at 60k, either way)
+            # one column, which no single active set suits (analysed with every node
+            # closed or with its first tangent, the frictional Hertz has as many
+            # perturbed pivots; docs/theory.md §10.1)
             B = None if analysis is None or not symmetric else analysis()
             if B is None:
                 return a
@@ -304,9 +306,9 @@ class Pardiso(LinearSolver):
         # the factor of the numeric factorisation below (generation + 1)
         factor = Factor(solver_of(h.generation + 1), A, None if fresh else refactor,
                         transposable=True, residual=_MklProduct(self._f.lib, A))
-        # the check's row scale now, while K's values are in cache (the upper triangle
-        # was just taken from them): after the factorisation, which streams the factor
-        # through the cache, it cost 0.30-0.34 instead of 0.24 ms at 56k DOFs
+        # the check's row scale here, while K's values are in cache (the upper triangle
+        # has just been taken from them): after the factorisation, which streams the
+        # factor through the cache, they would be read from memory again
         factor.row_scale()
         h.a = a
         h.call(22, a)

@@ -99,7 +99,8 @@ _BLOCK_STATS = ObjectMemo(4)
 def _block_stats(b: np.ndarray) -> tuple[float, float]:
     """(max |b|, max |b - b^T|) of a block array (n, k, k). A read-only array (a
     linear body's element stiffness, one per parameter values) cannot change, so
-    its figures are kept while it is passed again (4.7 ms per solve at 56k DOFs)."""
+    its figures are kept while it is passed again: a pass over every element
+    block is paid once per array, not once per solve."""
     frozen = not b.flags.writeable
     stats = _BLOCK_STATS.get(b) if frozen else None
     if stats is None:
@@ -113,9 +114,9 @@ def blocks_symmetric(blocks, tol: float = SYMMETRY_TOL) -> bool:
     """True if every local block (n, k, k) equals its transpose to ``tol`` relative
     to the largest entry of all: then so does their assembly, and every square
     submatrix of it on the same rows and columns. A sufficient test (blocks
-    whose asymmetries cancel in the sum would say False), a tenth of the cost
-    of comparing the assembled K with its transpose (2 ms against 21 ms at 56k
-    DOFs)."""
+    whose asymmetries cancel in the sum would say False), far cheaper than
+    comparing the assembled K with its transpose, which builds the transpose
+    and a sparse difference (docs/theory.md §10.1)."""
     stats = [_block_stats(np.asarray(b)) for b in blocks if np.size(b)]
     scale = max((m for m, _ in stats), default=0.0)
     return scale == 0 or all(a <= tol * scale for _, a in stats)

@@ -19,7 +19,8 @@ class SuperLU(LinearSolver):
 
     Unsymmetric tangents: COLAMD ordering and partial pivoting; symmetric ones:
     minimum degree on A + A^T with diagonal pivoting preferred (SuperLU's
-    symmetric mode), measured faster on our saddle-point tangents.
+    symmetric mode), the faster ordering for the symmetric saddle-point tangents
+    of frictionless contact.
     """
 
     name = "superlu"

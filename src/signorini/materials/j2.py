@@ -22,7 +22,7 @@ from ..errors import InputError
 from ..params import Spec, resolve
 
 _SQ23 = math.sqrt(2.0 / 3.0)
-_I = np.eye(3)  # NumPy: a JAX op at import compiles (20 ms each)
+_I = np.eye(3)  # NumPy: a JAX op at import is compiled, one program each (theory §10.5)
 
 #: Newton steps on the cubic det(s/mu + Ibar I) = 1: monotone from an upper
 #: bound within ~||s/mu||^2 of the root, quadratic; 8 steps reach round-off for

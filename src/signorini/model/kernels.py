@@ -106,8 +106,9 @@ class Model:
         self.fext = jax.jit(self.external_forces)
         self.cache: dict = {}
         self._local = jax.jit(self._local_impl)
-        # friction: the case flags and the tangent in one program (one dispatch per Newton
-        # evaluation instead of two: 0.20 -> 0.12 ms at 5k DOFs, theory §10.2)
+        # friction: the case flags and the tangent in one program: one dispatch per Newton
+        # evaluation instead of two, which matters on small meshes, where a dispatch
+        # costs more than the work (docs/theory.md §10.2)
         self._local_cases = jax.jit(self._local_cases_impl)
         self.compiled = Compiled(
             residual=jax.jit(self.residual), cases=jax.jit(self.cases),
@@ -343,10 +344,11 @@ class Model:
             f = lambda ue, Xe, he: element.element_update(ue, Xe, mat, mp, he, kin, form)
         return self._over_cells(f, u, X, hn)
 
-    #: element kernels run over chunks of this many cells on meshes of at least
+    #: element kernels run over chunks of CELL_CHUNK cells on meshes of at least
     #: CHUNKED_FROM cells: one vmap over every cell streams each intermediate of
-    #: the kernel through memory, a chunk keeps them in cache (the residual of
-    #: 447k cells: 308 -> 139 ms; 112k: 77 -> 58 ms; at 28k one vmap is faster)
+    #: the kernel through memory, a chunk keeps them in cache; below the threshold
+    #: the intermediates of one vmap fit in cache and the loop over chunks would
+    #: only add overhead (docs/theory.md §10.2)
     CELL_CHUNK = 16384
     CHUNKED_FROM = 65536
 
@@ -465,8 +467,9 @@ class Model:
     def _local_impl(self, w, params, t, state_n=None, cases=None, Ke=None):
         """Residual and the Jacobian blocks of every element and contact node
         (``Ke``: the constant element stiffness of a linear body, if known; it is
-        then not returned again, the blocks start with the contact blocks: an
-        output copy of Ke cost 40 of 76 ms at 0.9M DOFs)."""
+        then not returned again, the blocks start with the contact blocks: as an
+        output, Ke would be copied out of the compiled program on every call, a
+        copy as large as the whole element stiffness)."""
         if Ke is None:
             re, Ke_new, _ = self._elements(w, params, state_n, tangent=True)
             blocks = [Ke_new]
@@ -547,7 +550,7 @@ class Model:
         """The values the element kernels depend on (material and shape parameters;
         every value if unknown): Ke and dKe/dphi are kept while it is unchanged,
         so a solve for another obstacle radius, load or friction coefficient reuses
-        them (Ke at 56k DOFs: 25 ms per new value of R before)."""
+        them instead of running the element kernels over every cell again."""
         names = params if self._element_names is None else self._element_names
         return tuple(sorted((k, float(params[k])) for k in names))
 

@@ -204,9 +204,8 @@ def coarse_levels(refine: int, n_fine: int = 24) -> list[tuple[int, int]]:
 
 
 #: the CLIs start from coarser meshes only from this many DOFs on: below it,
-#: compiling the coarse meshes' kernels (0.9 s on a first run, 0.4 s loaded from
-#: the compilation cache, default 3.6k-DOF mesh) costs more than the Newton
-#: iterations they save (8 -> 1 of 2-3 ms each there; docs/theory.md §10.3)
+#: compiling (or loading from the compilation cache) the coarse meshes' kernels
+#: costs more than the few cheap Newton iterations they save (docs/theory.md §10.3)
 MIN_GUIDED_DOFS = 50_000
 
 

@@ -32,7 +32,7 @@ def proportional_parameter(model) -> str | None:
     nu). If that constant is a parameter name used nowhere else in the material
     and not a shape parameter, then K_e(phi) = E K_e(E = 1) and the pseudo-load
     of E is the internal force over E: one product with the kept K_e instead of
-    a JVP of the element kernels (7.9 -> 0.6 ms at 56k DOFs) and no dK_e/dE."""
+    a JVP of the element kernels over every cell, and no dK_e/dE."""
     field = model.material.stress_proportional_to
     if field is None or not model.linear_elements or model.element_parameters() is None:
         return None
@@ -76,8 +76,8 @@ class DDM:
         def material_pseudo(w, params, t, e_el):
             # tangents on the element parameters only, the displacements held: the
             # other parameters' tangents are symbolic zeros, so the geometry (without
-            # shape parameters) is not differentiated (E at 225k DOFs: 63-100 ms
-            # against 104-118 ms with a one-hot tangent on every parameter)
+            # shape parameters) is not differentiated, as it would be with a one-hot
+            # tangent on every parameter
             f = lambda sub: model.residual(w, {**params, **sub}, t, None, None, "elements")
             return jax.jvp(f, ({k: params[k] for k in e_el},), (e_el,))[1]
 
@@ -122,9 +122,9 @@ class DDM:
         (n_names, n_dof) the sensitivities of the prescribed DOFs (free rows zero).
 
         ``solve`` computes them before factorising the converged tangent: right
-        after a factorisation, MKL's threads still hold the cores for 1 ms and the
-        pseudo-loads of R, E, P took 2.2 instead of 1.5 ms at 56k DOFs (5.1
-        against 4.5 ms at 225k).
+        after a factorisation, MKL's threads still hold the cores for
+        ``KMP_BLOCKTIME`` (1 ms) and would slow the JAX kernels of the
+        pseudo-loads (docs/theory.md §10.2).
 
         Raises:
             NonDifferentiableError: a pseudo-load's free rows or a prescribed
@@ -140,7 +140,8 @@ class DDM:
         cases = m.compiled.cases(w, params, t, state_n) if m.has_contact_history else None
         P = self._pseudo_loads(w, params, t, state_n, cases, w_dot, e, state_dot_n, reuse_stiffness)
         # the free rows with contiguous columns: a take along the last axis (fancy
-        # indexing on that axis cost 0.34 ms at 56k DOFs, this 0.06 ms)
+        # indexing on that axis goes through NumPy's general advanced-indexing
+        # machinery, a take through a dedicated loop)
         P_free = np.take(P, m.free, axis=1).T
         # a finite column sum has finite terms (one pass, no temporary); only where a sum
         # is not finite (or a sum of finite terms overflowed) is every entry looked at
@@ -164,8 +165,9 @@ class DDM:
         P_free, w_dot, t_pseudo = loads
         t1 = time.perf_counter()
         X = factor.solve(P_free).reshape(P_free.shape[0], -1)
-        # back row by row through a mask of the free DOFs (0.07 against 0.38 ms for
-        # fancy indexing on the last axis at 56k DOFs)
+        # back row by row through a mask of the free DOFs, one contiguous row at a
+        # time (fancy indexing on the last axis of the whole array goes through
+        # NumPy's general advanced-indexing machinery)
         for k in range(len(self.names)):
             w_dot[k, self._free_mask] = -X[:, k]
         return w_dot, {"pseudo_load": t_pseudo, "back_substitution": time.perf_counter() - t1}
@@ -206,7 +208,8 @@ class DDM:
 
     def _internal_forces(self, w, params) -> np.ndarray:
         """(n_dof,) internal forces K_e u_e of a linear body, from its kept K_e
-        (compiled: 3.2 against 5.6 ms for NumPy's batched product at 225k DOFs)."""
+        (compiled: the gather, product and scatter fuse in one program, where
+        NumPy's batched product makes a temporary of each)."""
         return np.asarray(self._fint(self.model.element_stiffness(params)[0], w))
 
     #: largest dK_e/dphi kept (bytes); above it the pseudo-load is a JVP every increment
