@@ -44,6 +44,26 @@ MOVED = {
 }
 #: old modules whose names went to several new ones
 SPLIT = {"signorini.io": ("signorini.fem.meshfile", "signorini.post.files")}
+#: old modules named like the function the package exports: importing one binds
+#: it as that attribute of the package, so it must stay callable as the function
+CALLABLE = {"signorini.solve": "solve", "signorini.gradient": "gradient"}
+
+
+class _CallableModule(types.ModuleType):
+    """A deprecated module path that is also the package's function of that name
+    (``import signorini.solve`` puts it at ``signorini.solve``): calling it calls
+    the function, its attributes are the new module's."""
+
+    def __init__(self, name: str, module: types.ModuleType, function):
+        super().__init__(name, module.__doc__)
+        object.__setattr__(self, "_module", module)
+        object.__setattr__(self, "_function", function)
+
+    def __call__(self, *args, **kwargs):
+        return self._function(*args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
 
 
 def _warn(old: str, new: str) -> None:
@@ -80,6 +100,8 @@ class _OldPaths(importlib.abc.MetaPathFinder, importlib.abc.Loader):
             return _merged(name)
         _warn(name, MOVED[name])
         module = importlib.import_module(MOVED[name])
+        if name in CALLABLE:
+            return _CallableModule(name, module, getattr(module, CALLABLE[name]))
         self._own_spec[module.__name__] = module.__spec__
         return module
 

@@ -107,7 +107,6 @@ def test_objective_wrt_and_method(problem):
 
 
 @pytest.mark.parametrize("old,new", [("signorini.obstacles", "signorini.contact.obstacles"),
-                                     ("signorini.solve", "signorini.algorithms.stepping"),
                                      ("signorini.multilevel", "signorini.algorithms.coarse_to_fine")])
 def test_old_module_paths_import_the_new_modules_with_a_warning(old, new):
     sys.modules.pop(old, None)
@@ -115,6 +114,25 @@ def test_old_module_paths_import_the_new_modules_with_a_warning(old, new):
         mod = importlib.import_module(old)
     assert mod is importlib.import_module(new)
     assert mod.__spec__.name == new  # the real module keeps its own identity (pickling)
+
+
+@pytest.mark.parametrize("old,new,function", [("signorini.solve", "signorini.algorithms.stepping", "solve"),
+                                              ("signorini.gradient", "signorini.design.gradient", "gradient")])
+def test_an_old_module_path_named_like_a_function_stays_that_function(old, new, function, problem):
+    """``import signorini.solve`` binds the module at ``signorini.solve``, where the
+    function is: the deprecated module calls the function and has the module's names."""
+    real = getattr(sg, function)
+    sys.modules.pop(old, None)
+    try:
+        with pytest.warns(DeprecationWarning, match=f"{old} moved to {new}"):
+            mod = importlib.import_module(old)
+        assert getattr(sg, function) is mod and callable(mod)
+        assert getattr(mod, function) is real
+        assert mod(problem, **({} if function == "solve" else {"response": hertz.contact_work,
+                                                                 "wrt": ["E"]})) is not None
+    finally:
+        sys.modules.pop(old, None)
+        setattr(sg, function, real)
 
 
 def test_the_old_io_module_holds_the_reader_and_the_writers():
