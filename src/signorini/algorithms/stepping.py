@@ -207,8 +207,11 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
         if wrt:
             raise InputError("give the parameters once, as wrt= (sensitivities= is its old name)")
         wrt = old["sensitivities"]
+    keyword = "sensitivities" if "sensitivities" in old else "wrt"  # the one the user wrote
+    wrt = _sensitivity_names(wrt, keyword)
+    check_names(wrt, problem.params, keyword)
     method = DDM() if method is None else check_method(method, (DDM, Adjoint), "signorini.solve")
-    if isinstance(method, Adjoint) and len(_sensitivity_names(wrt)):
+    if isinstance(method, Adjoint) and wrt:
         raise InputError("solve(method=Adjoint()) computes no forward sensitivities, so wrt= has no "
                          "use there: for DDM sensitivities use method=DDM(); for an adjoint "
                          "gradient, signorini.gradient(problem, response, wrt, method=Adjoint())")
@@ -495,20 +498,20 @@ def _own_factor(lin: TangentSolver, K):
     return lin.factorize(K)
 
 
-def _sensitivity_names(sensitivities) -> list[str]:
+def _sensitivity_names(sensitivities, what: str = "wrt") -> list[str]:
     if isinstance(sensitivities, str):
-        raise InputError(f"wrt must be a list of parameter names, got the string "
-                         f"{sensitivities!r}; write wrt=[{sensitivities!r}]")
+        raise InputError(f"{what} must be a list of parameter names, got the string "
+                         f"{sensitivities!r}; write {what}=[{sensitivities!r}]")
     try:
         names = list(sensitivities or ())
     except TypeError:
-        raise InputError(f"wrt must be a list of parameter names, got "
+        raise InputError(f"{what} must be a list of parameter names, got "
                          f"{sensitivities!r}") from None
     for n in names:
         if not isinstance(n, str):
-            raise InputError(f"wrt must be parameter names (strings), got {n!r}")
+            raise InputError(f"{what} must be parameter names (strings), got {n!r}")
     if len(set(names)) != len(names):
-        raise InputError(f"wrt lists a parameter twice: {names}")
+        raise InputError(f"{what} lists a parameter twice: {names}")
     return names
 
 
