@@ -31,7 +31,7 @@ the fastest run kept, so **compile time is excluded**. Columns:
 * ``ddm_s``: the DDM's ``timing["gradient"]`` (factorisation of each converged
   tangent, pseudo-loads, back-substitutions, response JVPs and, since this
   benchmark found it missing, the update of the history sensitivities);
-  ``ddm_wall_extra_s``: wall time of ``gradient(mode="ddm")`` minus the plain
+  ``ddm_wall_extra_s``: wall time of ``gradient(method=DDM())`` minus the plain
   solve; ``ddm_fwd_part_s``: the DDM's ``timing["forward"]`` (the rows in
   results/ were measured before that fix: there the history-sensitivity update,
   ~0.9 s of forging at 50 parameters, is in ``ddm_fwd_part_s``);
@@ -193,7 +193,9 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
     import gc
 
     import signorini as sg
+    from signorini import Adjoint
     from signorini.design.gradient import gradient
+    from signorini.sensitivity.methods import method_named
 
     base, response, kw = setup(name, small)
     if count == "nodes":
@@ -210,7 +212,8 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
 
     def grad():
         t0 = time.perf_counter()
-        g = gradient(pb, response, names, mode=mode, increments=increments, solver=solver, **opts)
+        g = gradient(pb, response, names, method=method_named(mode), increments=increments, solver=solver,
+                     **opts)
         return time.perf_counter() - t0, g
 
     other, g = None, None
@@ -245,7 +248,7 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
         # check (after the peak RSS is read): the adjoint on the DDM's own converged
         # solution, for the same names and, with one-hot parameters, every nodal
         # coordinate (its entries at the one-hot nodes are their DDM derivatives)
-        chk = gradient(pb, response, names + (["nodes"] if extra else []), mode="adjoint",
+        chk = gradient(pb, response, names + (["nodes"] if extra else []), method=Adjoint(),
                        increments=increments, solver=solver, solution=g.solution, **opts)
         row["check_value"] = chk.value
         row["check_grad"] = {n: float(v) for n, v in chk.grad.items() if n != "nodes"}
@@ -255,12 +258,13 @@ def measure(name: str, count: str, mode: str, small: bool, solver: str, repeat: 
 
 def measure_memory(name: str, config: str, small: bool, solver: str, out: str) -> dict:
     """One process, one run: the all-nodes adjoint in one memory configuration."""
+    from signorini import Adjoint
     from signorini.design.gradient import gradient
 
     pb, response, kw = setup(name, small)
     before, other = rss_mb(), OtherCpu()
     t0 = time.perf_counter()
-    g = gradient(pb, response, ["nodes"], mode="adjoint", solver=solver, **kw, **MEMORY_CONFIGS[config])
+    g = gradient(pb, response, ["nodes"], method=Adjoint(**MEMORY_CONFIGS[config]), solver=solver, **kw)
     wall = time.perf_counter() - t0
     np.save(out, g["nodes"])
     return {"problem": name, "config": config, "dofs": int(g.solution.model.n_dof),

@@ -3,7 +3,7 @@
 Per mesh and linear solver, in a fresh process (so that the JIT time and the
 peak RSS belong to that row alone):
 
-* the first solve with ``sensitivities=phi0..phi4`` (includes JIT compilation),
+* the first solve with ``wrt=phi0..phi4`` (includes JIT compilation),
   then the same solve again (after JIT, best of ``--repeat``), and the solve
   without sensitivities (best of ``--repeat``);
 * DOFs, increments, Newton iterations (total and most in one increment) and
@@ -105,7 +105,7 @@ def _timed_solve(pb, names, steps, solver, wraps):
     for w in wraps.values():
         w.reset()
     t0 = time.perf_counter()
-    sol = sg.solve(pb, steps=steps, sensitivities=names, options=fg.options(), solver=solver)
+    sol = sg.solve(pb, steps=steps, wrt=names, options=fg.options(), solver=solver)
     wall = time.perf_counter() - t0
     return wall, sol, {k: (w.calls, w.time) for k, w in wraps.items()}
 
@@ -207,7 +207,7 @@ def profile(steps: int, solver: str, out: Path) -> None:
     pb = fg.forging_problem(mesh=MESHES["10x20"])
     names = list(fg.SHAPE)
     opts = fg.options()
-    sg.solve(pb, steps=steps, sensitivities=names, options=opts, solver=solver)  # JIT
+    sg.solve(pb, steps=steps, wrt=names, options=opts, solver=solver)  # JIT
     model = model_for(pb)
     ddm = ddm_for(model, names)
     jitted = {f"Model.{k}": (model, k) for k in
@@ -222,7 +222,7 @@ def profile(steps: int, solver: str, out: Path) -> None:
 
     prof = cProfile.Profile()
     t0 = time.perf_counter()
-    sol = prof.runcall(sg.solve, pb, steps=steps, sensitivities=names, options=opts, solver=solver)
+    sol = prof.runcall(sg.solve, pb, steps=steps, wrt=names, options=opts, solver=solver)
     wall = time.perf_counter() - t0
     n_it = sum(lg.iterations for lg in sol.log)
     n_inc = len(sol.increments)

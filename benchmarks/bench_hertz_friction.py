@@ -59,7 +59,7 @@ def one(size: str, steps: int, solver: str, warm: bool) -> dict:
         guide, levels = hertz.coarse_start_for(
             pb, lambda r, n: hertz_friction_problem(refine=r, n_fine=n), refine, n_fine,
             steps=steps_, options=opts, solver=lin)
-        return sg.solve(pb, steps=steps_, sensitivities=sens, solver=lin, options=opts,
+        return sg.solve(pb, steps=steps_, wrt=sens, solver=lin, options=opts,
                         guide=guide), levels
 
     if warm:  # compile (not timed); skipped for the largest mesh, whose first run is the run

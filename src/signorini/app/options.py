@@ -70,6 +70,12 @@ def parse_sets(items: list[str], allowed: dict) -> dict:
     return out
 
 
+def with_defaults(texts: dict, defaults: dict) -> dict:
+    """``--set`` help texts: each parameter's description, followed by its default
+    taken from the problem builder's own ``DEFAULTS`` (one source of the values)."""
+    return {k: f"{v}, default {defaults[k]:g}" if k in defaults else v for k, v in texts.items()}
+
+
 def set_help(allowed: dict) -> str:
     first = next(iter(allowed))
     return (f"set a named parameter (repeatable), e.g. --set {first}=1.5. Names: " +

@@ -11,27 +11,27 @@ from ...errors import InputError
 from ...post import files as io, plots
 from ...problems import forging
 from ...problems.forging import (
-    H0, TABLE1, body_volume, die_force, forging_problem, lateral_nodes, objective, options)
+    DEFAULTS, H0, TABLE1, body_volume, die_force, forging_problem, lateral_nodes, objective, options)
 from ..options import (
     Formatter, adjoint_option, finish, forging_mesh_options, parse_sets, print_adjoint, set_help,
-    solver_options)
+    solver_options, with_defaults)
 from ..runner import Timer, adjoint_report, prepare_output, solve_or_report, summary_header, use_solver
 
 NAME = "forging"
 
 
-FORGING_SET = {
-    **{f"phi{k}": f"Bezier control radius {k} of the preform [h0], default 0.7 (cylinder)"
+FORGING_SET = with_defaults({
+    **{f"phi{k}": f"Bezier control radius {k} of the preform [h0] (all equal: a cylinder)"
        for k in range(5)},
-    "mu": "Coulomb friction coefficient on the die, default 0.2",
-    "sigma_y": "initial yield stress, default 100",
-    "H": "linear isotropic hardening modulus, default 0",
-    "E": "Young's modulus, default 1e4",
-    "nu": "Poisson's ratio, default 0.3",
-    "stroke": "die travel [h0], default 0.5 (50 %% height reduction)",
+    "mu": "Coulomb friction coefficient on the die",
+    "sigma_y": "initial yield stress",
+    "H": "linear isotropic hardening modulus",
+    "E": "Young's modulus",
+    "nu": "Poisson's ratio",
+    "stroke": "die travel [h0] (0.5: 50 %% height reduction)",
     "eps": "normal augmentation parameter, default E0/h0",
     "eps_t": "tangential augmentation parameter, default eps",
-}
+}, DEFAULTS)
 
 
 def add_parser(sub) -> None:

@@ -15,20 +15,20 @@ from ...problems.hertz import (
     pressure, pressure_dR)
 from ..options import (
     UNITS, Formatter, coarse_start_option, common_options, finish, fmt_coarse, fmt_fd, nominal_a0,
-    parse_sets)
+    parse_sets, with_defaults)
 from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
 
 NAME = "hertz"
 
 
-HERTZ_SET = {
-    "E": "Young's modulus [N/mm²], default 100",
-    "nu": "Poisson's ratio, default 0.3",
-    "P": "load per unit thickness [N/mm], default 1.2",
-    "R": "cylinder radius [mm], default 1",
+HERTZ_SET = with_defaults({
+    "E": "Young's modulus [N/mm²]",
+    "nu": "Poisson's ratio",
+    "P": "load per unit thickness [N/mm]",
+    "R": "cylinder radius [mm]",
     "eps": "augmentation/penalty parameter [N/mm³], default E0/h (nominal E0, contact cell h)",
     "bump": "shape parameter: amplitude of a crown on the top face [mm], default 0",
-}
+}, DEFAULTS)
 
 def add_parser(sub) -> None:
     """Add this command's sub-parser to ``sub``."""

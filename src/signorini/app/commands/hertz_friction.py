@@ -11,26 +11,26 @@ from ...errors import InputError
 from ...post import files as io, plots
 from ...problems import hertz
 from ...problems.hertz_friction import (
-    BLOCK, hertz_friction_problem, load_increments, stick_zone)
+    BLOCK, DEFAULTS, hertz_friction_problem, load_increments, stick_zone)
 from ..options import (
     UNITS, Formatter, adjoint_option, coarse_start_option, common_options, finish, fmt_fd,
-    nominal_a0, parse_sets, print_adjoint)
+    nominal_a0, parse_sets, print_adjoint, with_defaults)
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver)
 
 NAME = "hertz-friction"
 
 
-FRICTION_SET = {
-    "E": "Young's modulus [N/mm²], default 100",
-    "nu": "Poisson's ratio, default 0.3",
-    "P": "final load per unit thickness [N/mm], default 1.5",
-    "R": "cylinder radius [mm], default 10",
-    "mu": "Coulomb friction coefficient, default 0.3",
+FRICTION_SET = with_defaults({
+    "E": "Young's modulus [N/mm²]",
+    "nu": "Poisson's ratio",
+    "P": "final load per unit thickness [N/mm]",
+    "R": "cylinder radius [mm]",
+    "mu": "Coulomb friction coefficient",
     "eps": "normal augmentation parameter [N/mm³], default E0/h",
     "eps_t": "tangential augmentation parameter [N/mm³], default eps",
     "bump": "shape parameter: amplitude of a crown on the top face [mm], default 0",
-}
+}, DEFAULTS)
 
 
 def add_parser(sub) -> None:
