@@ -46,7 +46,7 @@ the fastest run kept, so **compile time is excluded**. Columns:
   process, after its peak RSS is read, the adjoint runs on the DDM's own
   converged solution (``gradient(..., solution=...)``): ``max_rel_diff`` = max
   over the scalar parameters of |adjoint - DDM| / max |DDM| (the measure of
-  tests/test_adjoint.py), ``max_comp_rel_diff`` componentwise
+  tests/unit/test_adjoint.py), ``max_comp_rel_diff`` componentwise
   (|adjoint - DDM| / max(|DDM|, 1e-3 max |DDM|)), ``value_rel_diff`` of G;
   ``nodes_rel_diff``: ``grad["nodes"]`` at the one-hot nodes against the DDM
   of the one-hot parameters (50 row: same solution; "all nodes" row: the timed
@@ -292,7 +292,7 @@ def fit(ns, ts):
 
 
 def rel_diff(a: dict, d: dict) -> tuple[float, float]:
-    """Over the common names: (max_k |a_k - d_k| / max_k |d_k| (as tests/test_adjoint.py),
+    """Over the common names: (max_k |a_k - d_k| / max_k |d_k| (as tests/unit/test_adjoint.py),
     max_k |a_k - d_k| / max(|d_k|, 1e-3 max|d|) (componentwise, tiny components floored))."""
     common = [n for n in a if n in d]
     if not common:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import Delaunay, cKDTree
 
 from ..errors import InputError
 
@@ -14,6 +13,8 @@ def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) interpolation matrix: piecewise linear on the Delaunay triangulation
     of the coarse points Xc; a point outside it takes the nearest coarse point."""
     nf, nc = len(Xf), len(Xc)
+    from scipy.spatial import Delaunay, cKDTree  # lazy: heavy (scipy.special), coarse starts only
+
     tri = Delaunay(Xc)
     simplex = tri.find_simplex(Xf)
     inside = simplex >= 0
@@ -41,6 +42,8 @@ def _along_surface(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     nf, nc = len(Xf), len(Xc)
     if nc == 1:
         return sp.csr_matrix((np.ones(nf), (np.arange(nf), np.zeros(nf, dtype=int))), shape=(nf, 1))
+    from scipy.spatial import cKDTree  # lazy: heavy (scipy.special), coarse starts only
+
     _, idx = cKDTree(Xc).query(Xf, k=2)
     a, b = Xc[idx[:, 0]], Xc[idx[:, 1]]
     d = b - a

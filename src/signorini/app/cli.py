@@ -20,8 +20,10 @@ from . import registry
 from .options import UNITS, Formatter
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The parser of every command in :data:`signorini.app.registry.COMMANDS`."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command in :data:`signorini.app.registry.COMMANDS`, or of
+    command ``only`` alone (what a run needs: the other commands' modules are not
+    imported then)."""
     parser = argparse.ArgumentParser(
         prog="signorini", formatter_class=Formatter,
         description="Contact mechanics with exact sensitivities: the Alart-Curnier augmented "
@@ -31,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
                "'failed' are written), 2 bad input.")
     parser.add_argument("--version", action="version", version=f"signorini {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in registry.COMMANDS:
+    for name in registry.COMMANDS if only is None else (only,):
         registry.command(name).add_parser(sub)
     return parser
 
@@ -62,8 +64,8 @@ class _OnceFilter(logging.Filter):
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(argv[0] if argv and argv[0] in registry.COMMANDS else None)
     extra: list[str] = []
     if argv[:1] == ["sweep"] and "--" in argv:  # arguments after -- go to every run of the sweep
         k = argv.index("--")

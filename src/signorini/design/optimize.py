@@ -66,7 +66,6 @@ from pathlib import Path
 
 import numpy as np
 
-import scipy.optimize as so
 
 from .._deprecation import pop_old
 from ..model import checks
@@ -609,6 +608,8 @@ def minimize(objective: Objective, x0, method: str = "BFGS", *, bounds=None, con
         solves, failed, time``), ``evaluations`` (the records of this call),
         ``n_solves``, ``n_failed``, ``time`` [s] and ``names``.
     """
+    import scipy.optimize as so  # lazy: heavy, and only a minimisation needs it
+
 
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
