@@ -21,14 +21,16 @@ from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summa
 NAME = "hertz"
 
 
-HERTZ_SET = with_defaults({
+#: what the --set parameters of the Hertz problems are (their defaults are the builders')
+HERTZ_TEXTS = {
     "E": "Young's modulus [N/mm²]",
     "nu": "Poisson's ratio",
     "P": "load per unit thickness [N/mm]",
     "R": "cylinder radius [mm]",
     "eps": "augmentation/penalty parameter [N/mm³], default E0/h (nominal E0, contact cell h)",
     "bump": "shape parameter: amplitude of a crown on the top face [mm], default 0",
-}, DEFAULTS)
+}
+HERTZ_SET = with_defaults(HERTZ_TEXTS, DEFAULTS)
 
 def add_parser(sub) -> None:
     """Add this command's sub-parser to ``sub``."""

@@ -15,6 +15,7 @@ from ...problems.hertz_friction import (
 from ..options import (
     UNITS, Formatter, adjoint_option, coarse_start_option, common_options, finish, fmt_fd,
     nominal_a0, parse_sets, print_adjoint, with_defaults)
+from .hertz import HERTZ_TEXTS
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver)
 
@@ -22,15 +23,9 @@ NAME = "hertz-friction"
 
 
 FRICTION_SET = with_defaults({
-    "E": "Young's modulus [N/mm²]",
-    "nu": "Poisson's ratio",
-    "P": "final load per unit thickness [N/mm]",
-    "R": "cylinder radius [mm]",
-    "mu": "Coulomb friction coefficient",
+    **HERTZ_TEXTS, "P": "final load per unit thickness [N/mm]", "mu": "Coulomb friction coefficient",
     "eps": "normal augmentation parameter [N/mm³], default E0/h",
-    "eps_t": "tangential augmentation parameter [N/mm³], default eps",
-    "bump": "shape parameter: amplitude of a crown on the top face [mm], default 0",
-}, DEFAULTS)
+    "eps_t": "tangential augmentation parameter [N/mm³], default eps"}, DEFAULTS)
 
 
 def add_parser(sub) -> None:
