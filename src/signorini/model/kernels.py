@@ -25,8 +25,6 @@ sparsely once per pattern); the DDM pseudo-load is a JVP of ``residual`` in
 
 from __future__ import annotations
 
-import time
-
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -37,14 +35,15 @@ from .._jax import jax, jnp, to_device
 from ..fem.assembly import SparsityPattern
 from ..contact.area import nodal_normals
 from .dofs import DofLayout
-from ..errors import InputError, SignoriniError
-from ..fem.mesh import check_orientation
+from ..errors import InputError
 from ..contact.obstacles import Linearized
-from ..params import as_jax, check_names, names_in, resolve, unit_tangents
+from .fields import ModelFields
+from .geometry import NODES, ModelGeometry  # noqa: F401  (NODES: re-exported)
+from .history import ModelHistory
 from .problem import Problem
+from .stiffness import ModelStiffness
+from .validation import ModelChecks
 
-#: reserved parameter name: every nodal coordinate of the reference mesh (n_nodes, 2)
-NODES = "nodes"
 
 
 @dataclass(frozen=True)
@@ -61,8 +60,17 @@ class Compiled:
     stiffness: Callable     #: element stiffness of a linear body, Ke(params)
 
 
-class Model:
+class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelFields):
     """Kernels, DOF layout and sparsity pattern of a :class:`Problem`.
+
+    The class is assembled from one part per concern, each in its own module:
+    :class:`~signorini.model.geometry.ModelGeometry` (reference geometry, loads,
+    prescribed values), :class:`~signorini.model.validation.ModelChecks`
+    (parameter checks), :class:`~signorini.model.history.ModelHistory` (history
+    update and its sensitivity), :class:`~signorini.model.stiffness.ModelStiffness`
+    (a linear body's kept element stiffness) and
+    :class:`~signorini.model.fields.ModelFields` (post-processing); this module
+    holds the residual, the contact inputs and the tangent.
 
     Besides those of its :class:`~signorini.model.dofs.DofLayout` (``layout``):
 
@@ -152,122 +160,11 @@ class Model:
     def has_contact_history(self) -> bool:
         return any(s.has_history for s in self.surfaces)
 
-    # ------------------------------------------------------------------ setup
-    def _check_names(self):
-        p = self.problem
-        specs = list(p.material.specs())
-        for f in p.fixed:
-            specs += f.specs()
-        for l in p.loads:
-            specs += l.specs()
-        for c in p.contact:
-            specs += c.specs()
-        check_names(names_in(specs), p.params, "the problem definition")
-        self._specs = specs
-        self.check_values(p.params)
 
-    def check_values(self, params) -> None:
-        """Every expression of the definition evaluates to finite numbers at these
-        values (before any JAX tracing; again for each problem that reuses the model)."""
-        for s in self._specs:
-            if isinstance(s, str):
-                continue
-            try:
-                v = np.asarray(resolve(s, params), dtype=float)
-            except SignoriniError:
-                raise
-            except (TypeError, ValueError):
-                raise InputError(f"a load, support, material or contact value is {s!r}, which is "
-                                 "not a number, a parameter name or a function of the "
-                                 "parameters") from None
-            except ArithmeticError as e:  # e.g. a division by a parameter that is zero
-                raise InputError(f"a load, support, material or contact value {s!r} cannot be "
-                                 f"evaluated at these parameter values ({e}); every value must "
-                                 "be a finite number") from None
-            if not np.all(np.isfinite(v)):
-                raise InputError(f"a load, support, material or contact value evaluates to {v} "
-                                 "(NaN or inf); every value must be a finite number")
 
-    def check(self, params: dict) -> None:
-        """Validate parameter values (material, obstacles, eps; no inverted element)."""
-        p = self.problem
-        p.material.check(params)
-        for s in self.surfaces:
-            s.contact.obstacle.check(params)
-            s.contact.method.check(params)
-            self._check_regularisation(s, params)
-        if self.shape_names:
-            X = np.asarray(self.reference(as_jax(params)))
-            check_orientation(X, self.conn, "reference mesh at the given shape parameters")
-            self.kinematics.check_mesh(X)
 
     #: eps outside [1e-8, 1e8] x E/h makes the tangent ill-conditioned to no benefit
     EPS_RANGE = (1e-8, 1e8)
-
-    @staticmethod
-    def contact_cell_size(s, X) -> float:
-        """Mean edge length h of contact surface ``s`` on the coordinates X."""
-        X = np.asarray(X)
-        return float(np.linalg.norm(X[s.edges[:, 1]] - X[s.edges[:, 0]], axis=1).mean())
-
-    def _check_regularisation(self, s, params) -> None:
-        """eps (penalty / augmentation) must be finite and not absurd next to E/h."""
-        vals = {k: float(v) for k, v in s.contact.method.values(params).items() if k.startswith("eps")}
-        try:
-            E = float(resolve(self.problem.material.E, params))
-        except AttributeError:
-            return
-        h = self.contact_cell_size(s, self.reference_nodes)
-        scale = E / h
-        lo, hi = self.EPS_RANGE
-        for k, v in vals.items():
-            if not np.isfinite(v) or not lo * scale <= v <= hi * scale:
-                raise InputError(
-                    f"contact {s.contact.edges!r}: {k} = {v:.4g} is outside [{lo:g}, {hi:g}] x E/h "
-                    f"= [{lo * scale:.3g}, {hi * scale:.3g}] (E = {E:.4g}, mean contact cell h = "
-                    f"{h:.3g}); such a value only ruins the conditioning of the tangent. "
-                    f"Use eps of the order of E/h = {scale:.3g}")
-
-    # ----------------------------------------------------------- pure kernels
-    def reference(self, params):
-        """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities (and
-        by ``params["nodes"]`` (n_nodes, 2), the shape field of every nodal
-        coordinate, when an adjoint gradient asks for it: docs/theory.md §11)."""
-        if not self.shape_names and NODES not in params:
-            return self._X0
-        return self._reference(params)  # compiled: called eagerly by checks and outputs
-
-    def _reference_impl(self, params):
-        X = self._X0
-        for k in self.shape_names:
-            X = X + (params[k] - self.problem.shape_nominal[k]) * self._V[k]
-        if NODES in params:
-            X = X + params[NODES]
-        return X
-
-    def external_forces(self, X, params, t):
-        """(n_dof,) consistent nodal forces of all loads at load factor t."""
-        f = jnp.zeros(self.n_dof)
-        for load, edges in zip(self.problem.loads, self.load_edges):
-            fe = load.nodal_forces(X, edges, params, t, self.kinematics)  # (n_edges, 2, 2)
-            d = np.stack([2 * edges, 2 * edges + 1], axis=-1)
-            f = f.at[d.ravel()].add(fe.ravel())
-        return f
-
-    def prescribed_values(self, params, t):
-        """(n_prescribed,) prescribed displacement values at t."""
-        fixed = self.layout.prescribed_fixed
-        if not len(fixed):
-            return jnp.zeros(0)
-        if self._fixed_groups is None:  # one value per Fixed, broadcast to its DOFs
-            pos: dict = {}
-            for f in fixed:
-                pos.setdefault(id(f), (len(pos), f))
-            self._fixed_groups = ([f for _, f in pos.values()],
-                                  np.array([pos[id(f)][0] for f in fixed]))
-        groups, index = self._fixed_groups
-        vals = jnp.stack([jnp.asarray(resolve(f.value, params), dtype=float) * f.ramp(t) for f in groups])
-        return vals[index]
 
     def contact_inputs(self, s, X, u, lam, params, t):
         """Per-node inputs of a surface: positions x, multipliers, areas A, obstacle
@@ -374,68 +271,6 @@ class Model:
         out = jax.lax.map(chunk, (cells, conn[cells]))
         return jax.tree_util.tree_map(lambda a: a.reshape((k * size,) + a.shape[2:])[:n], out)
 
-    # ---------------------------------------------------------------- history
-    def update(self, w, params, t, state_n):
-        """Pure history update after convergence at t (docs/theory.md §1, §3):
-        (w, contact history, material history). Contact: the slip coordinate
-        s = s(x_S) of every node of a friction surface on the obstacle at t
-        (linearised obstacle in small-strain runs). Material: the return map at
-        every Gauss point from the history of the previous increment."""
-        contact = []
-        for i, s, x, _, _, geo, _, Xs in self._surface_inputs(w, params, t):
-            if not s.has_history:
-                contact.append(None)
-                continue
-            contact.append(jax.vmap(lambda xs, X0, s=s, geo=geo: self.obstacle_at(s, X0).coordinate(
-                xs, geo))(x, Xs))
-        material = self._elements(w, params, state_n, tangent=False)[1] if self.n_state else None
-        return (w, tuple(contact), material)
-
-    def initial_state(self, w, params):
-        """state_0 = (w_0, s_0 = s(X(phi)) at t = 0, virgin material); None without history."""
-        if not self.has_history:
-            return None
-        w = jnp.asarray(w)
-        h0 = None
-        if self.n_state:
-            h0 = jnp.broadcast_to(self.material.initial_state(),
-                                  (len(self.conn), element.N_GAUSS, self.n_state))
-        contact = self.compiled.update(w, params, 0.0, (w, (None,) * len(self.surfaces), h0))[1]
-        return (w, contact, h0)
-
-    def initial_state_sensitivity(self, params, names):
-        """D state_0 / D phi_k batched over ``names``: (0, grad s . V_k + ds/dphi_k, 0)."""
-        if not self.has_history:
-            return None
-        e = unit_tangents(params, list(names))
-        z = jnp.zeros((len(names), self.n_dof))
-        s0 = self.initial_state(jnp.zeros(self.n_dof), params)
-        sd0 = jax.tree_util.tree_map(lambda a: jnp.zeros((len(names),) + a.shape), s0)
-        contact = self._update_jvp(jnp.zeros(self.n_dof), params, 0.0, s0, z, e, sd0)[1]
-        return (z, contact, sd0[2])
-
-    def update_state(self, inc, params, t, state_n, state_dot, names):
-        """New state after a converged increment and its sensitivity (JVP of
-        :meth:`update` with tangents (w_dot, e_k, state_dot_n), batched over
-        ``names``). Stores both on ``inc`` (``state``, ``state_sens``)."""
-        if not self.has_history:
-            return state_n, state_dot
-        w = to_device(inc.w)
-        state = self.compiled.update(w, params, t, state_n)
-        # the unknowns in the state are those of the increment: share inc.w instead of
-        # keeping a second copy (half the memory per increment with friction)
-        state = (inc.w,) + tuple(state[1:])
-        sdot = None
-        if state_dot is not None and len(names):
-            t0 = time.perf_counter()
-            wd = to_device(np.stack([inc.sens[n] for n in names]))
-            sdot = self._update_jvp(w, params, t, state_n, wd, unit_tangents(params, list(names)),
-                                    state_dot)
-            jax.block_until_ready(sdot)
-            inc.timing["history_sensitivity"] = time.perf_counter() - t0
-        inc.state, inc.state_sens = state, sdot
-        return state, sdot
-
     # --------------------------------------------------------------- residual
     def residual(self, w, params, t, state_n=None, cases=None, part: str = "all"):
         """Global residual R (n_dof,) = internal + contact - external forces;
@@ -457,12 +292,6 @@ class Model:
                 (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
-
-    def linear_forces(self, Ke, w):
-        """(n_dof,) internal forces sum_e K_e u_e of a linear body with element
-        stiffness Ke (n_cells, 8, 8) (traceable)."""
-        re = jnp.einsum("eij,ej->ei", Ke, w[self.edofs])
-        return jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
 
     def _local_impl(self, w, params, t, state_n=None, cases=None, Ke=None):
         """Residual and the Jacobian blocks of every element and contact node
@@ -538,32 +367,6 @@ class Model:
             return None
         return K
 
-    def element_parameters(self) -> set[str] | None:
-        """Names on which the internal forces depend through the material or the
-        shape (None: unknown, a material value is a function of the parameters)."""
-        specs = list(self.material.specs())
-        if any(callable(v) for v in specs):
-            return None
-        return {v for v in specs if isinstance(v, str)} | set(self.shape_names)
-
-    def element_key(self, params) -> tuple:
-        """The values the element kernels depend on (material and shape parameters;
-        every value if unknown): Ke and dKe/dphi are kept while it is unchanged,
-        so a solve for another obstacle radius, load or friction coefficient reuses
-        them instead of running the element kernels over every cell again."""
-        names = params if self._element_names is None else self._element_names
-        return tuple(sorted((k, float(params[k])) for k in names))
-
-    def element_stiffness(self, params):
-        """(Ke JAX, Ke NumPy) (n_cells, 8, 8) of a linear body, computed once per
-        values of the element parameters (E, nu, shape parameters may differ
-        between solves; :meth:`element_key`)."""
-        key = self.element_key(params)
-        if self._ke is None or self._ke[0] != key:
-            Ke = self.compiled.stiffness(params)
-            self._ke = (key, Ke, np.asarray(Ke))
-        return self._ke[1], self._ke[2]
-
     def convergence_weights(self, params) -> np.ndarray:
         """(n_dof,) row weights giving every residual row force units."""
         wts = np.ones(self.n_dof)
@@ -572,68 +375,6 @@ class Model:
             wts[s.lam_dofs] = np.asarray(s.contact.method.row_scale(cp), dtype=float)  # scalar or (m,)
         return wts
 
-    # ------------------------------------------------------------ post-process
-    def contact_fields(self, w, params, t, surface: int = 0):
-        """Pure function: per-node gap g, p_N, p_T and area of a surface (each (nc,))."""
-        s = self.surfaces[surface]
-        X = self.reference(params)
-        u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
-        meth = s.contact.method
-        g = jax.vmap(lambda xs, X0: self.obstacle_at(s, X0).gap(xs, geo))(x, Xs)
-        pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
-            xs, ls, a, geo, self.obstacle_at(s, X0), cp))(x, lam, A, Xs)
-        return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
 
-    def contact_status(self, w, params, t, state_n, surface: int = 0):
-        """Pure function: per-node (status code, slip increment g_T) of a friction
-        surface (codes of :mod:`signorini.contact.friction`); state_n = state
-        *before* the increment of w."""
-        s = self.surfaces[surface]
-        X = self.reference(params)
-        u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
-        meth = s.contact.method
-        h = self._node_history(surface, state_n)
-        st = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
-            xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
-        gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self.obstacle_at(s, X0), hs))(x, h, Xs)
-        return st, gt
 
-    def switch_fields(self, w, params, t, state_n=None):
-        """Pure function: what decides the branches of the non-smooth laws at w
-        (docs/theory.md §11): per surface ``{"gap", "p_N", "stick_margin"}`` (nc,)
-        (stick margin |lam^_T| - rho, inf where there is no friction branch), and
-        the yield ratio (n_cells, 4) of a material with ``yield_ratio`` (None else);
-        state_n is the state before the increment of w."""
-        X = self.reference(params)
-        u, lams = self.split(w)
-        out = []
-        for i, s in enumerate(self.surfaces):
-            x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[i], params, t)
-            meth = s.contact.method
-            f = self.contact_fields(w, params, t, i)
-            margin = jnp.full(s.nodes.size, jnp.inf)
-            if meth.stick_margin is not None:
-                h = self._node_history(i, state_n)
-                margin = jax.vmap(lambda xs, ls, a, hs, X0, s=s, meth=meth, geo=geo, cp=cp: meth.stick_margin(
-                    xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
-            out.append({"gap": f["gap"], "p_N": f["p_N"], "stick_margin": margin})
-        ratio = None
-        if self.n_state and self.material.yield_ratio is not None:
-            mp = self.material.values(params)
-            kin, form, mat = self.kinematics, self.formulation, self.material
-            ratio = self._over_cells(lambda ue, Xe, he: element.element_yield_ratio(
-                ue, Xe, mat, mp, he, kin, form), u, X, self._material_history(state_n))
-        return tuple(out), ratio
 
-    def stresses(self, w, params, state_n=None):
-        """Pure function: element-averaged Cauchy stress (n_cells, 3, 3) (with
-        material history: from the state before the increment of w)."""
-        X = self.reference(params)
-        u, _ = self.split(w)
-        mp = self.material.values(params)
-        hn = self._material_history(state_n)
-        kin, form, mat = self.kinematics, self.formulation, self.material
-        return self._over_cells(lambda ue, Xe, he: element.element_stress(ue, Xe, mat, mp, he, kin, form),
-                                u, X, hn)

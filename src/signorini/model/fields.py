@@ -1,0 +1,80 @@
+"""Post-processing: contact fields, friction status, switch fields and stresses
+(pure functions of the state, compiled by the model).
+
+A part of :class:`signorini.model.kernels.Model` (a mixin: its methods use the
+model's layout, kernels and compiled programs)."""
+
+from __future__ import annotations
+
+from ..fem import element
+from .._jax import jax, jnp
+
+
+class ModelFields:
+    """Post-processing: contact fields, friction status, switch fields, stresses."""
+
+    # ------------------------------------------------------------ post-process
+    def contact_fields(self, w, params, t, surface: int = 0):
+        """Pure function: per-node gap g, p_N, p_T and area of a surface (each (nc,))."""
+        s = self.surfaces[surface]
+        X = self.reference(params)
+        u, lams = self.split(w)
+        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
+        meth = s.contact.method
+        g = jax.vmap(lambda xs, X0: self.obstacle_at(s, X0).gap(xs, geo))(x, Xs)
+        pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
+            xs, ls, a, geo, self.obstacle_at(s, X0), cp))(x, lam, A, Xs)
+        return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
+
+    def contact_status(self, w, params, t, state_n, surface: int = 0):
+        """Pure function: per-node (status code, slip increment g_T) of a friction
+        surface (codes of :mod:`signorini.contact.friction`); state_n = state
+        *before* the increment of w."""
+        s = self.surfaces[surface]
+        X = self.reference(params)
+        u, lams = self.split(w)
+        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
+        meth = s.contact.method
+        h = self._node_history(surface, state_n)
+        st = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
+            xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
+        gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self.obstacle_at(s, X0), hs))(x, h, Xs)
+        return st, gt
+
+    def switch_fields(self, w, params, t, state_n=None):
+        """Pure function: what decides the branches of the non-smooth laws at w
+        (docs/theory.md §11): per surface ``{"gap", "p_N", "stick_margin"}`` (nc,)
+        (stick margin |lam^_T| - rho, inf where there is no friction branch), and
+        the yield ratio (n_cells, 4) of a material with ``yield_ratio`` (None else);
+        state_n is the state before the increment of w."""
+        X = self.reference(params)
+        u, lams = self.split(w)
+        out = []
+        for i, s in enumerate(self.surfaces):
+            x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[i], params, t)
+            meth = s.contact.method
+            f = self.contact_fields(w, params, t, i)
+            margin = jnp.full(s.nodes.size, jnp.inf)
+            if meth.stick_margin is not None:
+                h = self._node_history(i, state_n)
+                margin = jax.vmap(lambda xs, ls, a, hs, X0, s=s, meth=meth, geo=geo, cp=cp: meth.stick_margin(
+                    xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
+            out.append({"gap": f["gap"], "p_N": f["p_N"], "stick_margin": margin})
+        ratio = None
+        if self.n_state and self.material.yield_ratio is not None:
+            mp = self.material.values(params)
+            kin, form, mat = self.kinematics, self.formulation, self.material
+            ratio = self._over_cells(lambda ue, Xe, he: element.element_yield_ratio(
+                ue, Xe, mat, mp, he, kin, form), u, X, self._material_history(state_n))
+        return tuple(out), ratio
+
+    def stresses(self, w, params, state_n=None):
+        """Pure function: element-averaged Cauchy stress (n_cells, 3, 3) (with
+        material history: from the state before the increment of w)."""
+        X = self.reference(params)
+        u, _ = self.split(w)
+        mp = self.material.values(params)
+        hn = self._material_history(state_n)
+        kin, form, mat = self.kinematics, self.formulation, self.material
+        return self._over_cells(lambda ue, Xe, he: element.element_stress(ue, Xe, mat, mp, he, kin, form),
+                                u, X, hn)

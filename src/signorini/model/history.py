@@ -1,0 +1,82 @@
+"""The history of path-dependent problems: the pure update after convergence,
+the initial state and their sensitivities (docs/theory.md §1, §3.5).
+
+A part of :class:`signorini.model.kernels.Model` (a mixin: its methods use the
+model's layout, kernels and compiled programs)."""
+
+from __future__ import annotations
+
+import time
+
+
+import numpy as np
+
+from ..fem import element
+from .._jax import jax, jnp, to_device
+from ..params import unit_tangents
+
+
+class ModelHistory:
+    """The history of path-dependent problems: update, initial state, sensitivities."""
+
+    # ---------------------------------------------------------------- history
+    def update(self, w, params, t, state_n):
+        """Pure history update after convergence at t (docs/theory.md §1, §3):
+        (w, contact history, material history). Contact: the slip coordinate
+        s = s(x_S) of every node of a friction surface on the obstacle at t
+        (linearised obstacle in small-strain runs). Material: the return map at
+        every Gauss point from the history of the previous increment."""
+        contact = []
+        for i, s, x, _, _, geo, _, Xs in self._surface_inputs(w, params, t):
+            if not s.has_history:
+                contact.append(None)
+                continue
+            contact.append(jax.vmap(lambda xs, X0, s=s, geo=geo: self.obstacle_at(s, X0).coordinate(
+                xs, geo))(x, Xs))
+        material = self._elements(w, params, state_n, tangent=False)[1] if self.n_state else None
+        return (w, tuple(contact), material)
+
+    def initial_state(self, w, params):
+        """state_0 = (w_0, s_0 = s(X(phi)) at t = 0, virgin material); None without history."""
+        if not self.has_history:
+            return None
+        w = jnp.asarray(w)
+        h0 = None
+        if self.n_state:
+            h0 = jnp.broadcast_to(self.material.initial_state(),
+                                  (len(self.conn), element.N_GAUSS, self.n_state))
+        contact = self.compiled.update(w, params, 0.0, (w, (None,) * len(self.surfaces), h0))[1]
+        return (w, contact, h0)
+
+    def initial_state_sensitivity(self, params, names):
+        """D state_0 / D phi_k batched over ``names``: (0, grad s . V_k + ds/dphi_k, 0)."""
+        if not self.has_history:
+            return None
+        e = unit_tangents(params, list(names))
+        z = jnp.zeros((len(names), self.n_dof))
+        s0 = self.initial_state(jnp.zeros(self.n_dof), params)
+        sd0 = jax.tree_util.tree_map(lambda a: jnp.zeros((len(names),) + a.shape), s0)
+        contact = self._update_jvp(jnp.zeros(self.n_dof), params, 0.0, s0, z, e, sd0)[1]
+        return (z, contact, sd0[2])
+
+    def update_state(self, inc, params, t, state_n, state_dot, names):
+        """New state after a converged increment and its sensitivity (JVP of
+        :meth:`update` with tangents (w_dot, e_k, state_dot_n), batched over
+        ``names``). Stores both on ``inc`` (``state``, ``state_sens``)."""
+        if not self.has_history:
+            return state_n, state_dot
+        w = to_device(inc.w)
+        state = self.compiled.update(w, params, t, state_n)
+        # the unknowns in the state are those of the increment: share inc.w instead of
+        # keeping a second copy (half the memory per increment with friction)
+        state = (inc.w,) + tuple(state[1:])
+        sdot = None
+        if state_dot is not None and len(names):
+            t0 = time.perf_counter()
+            wd = to_device(np.stack([inc.sens[n] for n in names]))
+            sdot = self._update_jvp(w, params, t, state_n, wd, unit_tangents(params, list(names)),
+                                    state_dot)
+            jax.block_until_ready(sdot)
+            inc.timing["history_sensitivity"] = time.perf_counter() - t0
+        inc.state, inc.state_sens = state, sdot
+        return state, sdot
