@@ -46,6 +46,19 @@ def prepare_output(out) -> Path:
     return path
 
 
+def write_summary(out: Path, summary: dict, solution) -> dict:
+    """``summary.json`` of a converged run, with the solve's final list of warnings."""
+    summary["warnings"] = list(solution.warnings)
+    io.write_json(out / "summary.json", summary)
+    return summary
+
+
+def newton_log(solution) -> dict:
+    """The Newton entries of a summary: iterations and residual norms per increment."""
+    return {"newton_iterations": solution.newton_iterations,
+            "newton_residuals": [inc.newton.residuals for inc in solution.increments]}
+
+
 def summary_header(status: str, solution=None, reason: str = "") -> dict:
     """The keys every ``summary.json`` starts with."""
     head = {"status": status}

@@ -15,7 +15,8 @@ from ...problems.forging import (
 from ..options import (
     Formatter, adjoint_option, finish, forging_mesh_options, parse_sets, print_adjoint, set_help,
     solver_options, with_defaults)
-from ..runner import Timer, adjoint_report, prepare_output, solve_or_report, summary_header, use_solver
+from ..runner import (
+    Timer, adjoint_report, prepare_output, solve_or_report, summary_header, use_solver, write_summary)
 
 NAME = "forging"
 
@@ -172,6 +173,4 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "time_solve_s": t_solve,
         "time_wall_s": clock(),
     })
-    summary["warnings"] = list(sol.warnings)
-    io.write_json(out / "summary.json", summary)
-    return summary
+    return write_summary(out, summary, sol)

@@ -16,7 +16,9 @@ from ...problems.hertz import (
 from ..options import (
     UNITS, Formatter, coarse_start_option, common_options, finish, fmt_coarse, fmt_fd, nominal_a0,
     parse_sets, with_defaults)
-from ..runner import Timer, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver
+from ..runner import (
+    Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, summary_header, use_solver,
+    write_summary)
 
 NAME = "hertz"
 
@@ -161,17 +163,14 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
         "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,
               "error_in_cells": (a_fe - an["a"]) / fine_cell_size(pb)},
-        "newton_iterations": sol.newton_iterations,
-        "newton_residuals": [inc.newton.residuals for inc in sol.increments],
+        **newton_log(sol),
         "coarse_start": levels if levels else (skipped or "no coarser mesh"),
         "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,
         "time_wall_s": clock(),
     })
-    summary["warnings"] = list(sol.warnings)
-    io.write_json(out / "summary.json", summary)
-    return summary
+    return write_summary(out, summary, sol)
 
 
 def _validity(sol, a_fe: float, v: dict, pb, zone_width: float, checks) -> None:

@@ -17,7 +17,8 @@ from ..options import (
     nominal_a0, parse_sets, print_adjoint, with_defaults)
 from .hertz import HERTZ_TEXTS
 from ..runner import (
-    Timer, adjoint_report, max_rel_diff, prepare_output, solve_or_report, summary_header, use_solver)
+    Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, summary_header,
+    use_solver, write_summary)
 
 NAME = "hertz-friction"
 
@@ -170,17 +171,14 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "loads": [{k: val for k, val in lv.items() if k != "contact"} for lv in levels],
         "c_over_a": [lv["c_over_a"] for lv in levels],
         "c_over_a_bracket": [lv["c_over_a_bracket"] for lv in levels],
-        "newton_iterations": sol.newton_iterations,
-        "newton_residuals": [inc.newton.residuals for inc in sol.increments],
+        **newton_log(sol),
         "ddm_vs_fd_rel_diff_P3": ddm_fd if fd_check else "not computed (--no-fd)",
         "adjoint": adj if adjoint else "not computed (use --adjoint)",
         "fd_relative_step": fd_step,
         "time_solve_s": t_solve,
         "time_wall_s": clock(),
     })
-    summary["warnings"] = list(sol.warnings)
-    io.write_json(out / "summary.json", summary)
-    return summary
+    return write_summary(out, summary, sol)
 
 
 def _figures(out, levels, v, plots):
