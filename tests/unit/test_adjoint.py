@@ -271,13 +271,13 @@ def test_solution_argument_must_match_and_memory_counts_factors():
     assert all(inc.state[0] is inc.w for inc in sol.increments)
 
 
-def test_cli_optimise_forging_with_adjoint_gradient(tmp_path):
-    """optimise-forging --gradient adjoint takes the same path as the DDM."""
+def test_cli_optimize_forging_with_adjoint_gradient(tmp_path):
+    """optimize-forging --gradient adjoint takes the same path as the DDM."""
     from signorini.app.cli import main
 
     F = {}
     for g in ("adjoint", "ddm"):
-        main(["optimise-forging", "--out", str(tmp_path / g), "--mu", "0.2", "--mesh", "2x4",
+        main(["optimize-forging", "--out", str(tmp_path / g), "--mu", "0.2", "--mesh", "2x4",
               "--steps", "4", "--maxiter", "2", "--gradient", g, "--sequential", "-q"])
         rows = list(__import__("csv").DictReader(open(next((tmp_path / g).rglob("history.csv")))))
         F[g] = np.array([float(r["F"]) for r in rows])

@@ -4,6 +4,7 @@ import csv
 import json
 
 import numpy as np
+import pytest
 
 from signorini.app.cli import main
 from signorini.problems import hertz
@@ -76,3 +77,17 @@ def test_help_and_version(capsys):
     assert "mu = Coulomb friction coefficient" in text  # the --set names of hertz-friction
     assert "--zone-width" in text and "(default: 20.0)" in text and "(default: 80.0)" in text
     assert ":func:" not in text and "``" not in text  # no raw reStructuredText
+
+
+def test_old_command_name_runs_the_renamed_command_with_a_notice(capsys):
+    """``optimise-forging`` is ``optimize-forging`` now (one spelling); the old name
+    still runs it for a release and says so on stderr."""
+    with pytest.raises(SystemExit) as e:
+        main(["optimise-forging", "--help"])
+    assert e.value.code == 0
+    out, err = capsys.readouterr()
+    assert "usage: signorini optimize-forging" in out
+    assert "'optimise-forging' is now 'optimize-forging'" in err
+    with pytest.raises(SystemExit):
+        main(["optimize-forging", "--help"])
+    assert "is now" not in capsys.readouterr().err

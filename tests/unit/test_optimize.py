@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini.app.commands import optimise_forging as fo_cmd
+from signorini.app.commands import optimize_forging as fo_cmd
 from signorini.design import optimize as opt
 from signorini.problems import forging as fg
 from signorini.problems import forging_opt as fo
@@ -227,18 +227,18 @@ def test_forging_preform_optimisation_outputs_and_resume(tmp_path):
     assert [h.index for h in hist2] == list(range(1, len(hist) + r2["solves"] + 1))
 
 
-def test_optimise_forging_command(tmp_path, capsys):
-    """`signorini optimise-forging` on a tiny mesh: the table is printed and F falls."""
+def test_optimize_forging_command(tmp_path, capsys):
+    """`signorini optimize-forging` on a tiny mesh: the table is printed and F falls."""
     import json
 
     from signorini.app.cli import main
 
     out = tmp_path / "opt"
-    assert main(["optimise-forging", "--out", str(out), "--mu", "0.1", "--mesh", "3x6",
+    assert main(["optimize-forging", "--out", str(out), "--mu", "0.1", "--mesh", "3x6",
                  "--steps", "10", "--maxiter", "4", "-q"]) == 0
     s = json.loads((out / "summary.json").read_text())
     r = s["runs"][0]
     assert r["F_opt"] < 0.2 * r["F_start"]
     assert (out / "mu_0.1" / "history.csv").exists() and (out / "shapes.png").exists()
     assert "F(cylinder)" in capsys.readouterr().out
-    assert main(["optimise-forging", "--out", str(out), "--mu", "x"]) == 2
+    assert main(["optimize-forging", "--out", str(out), "--mu", "x"]) == 2

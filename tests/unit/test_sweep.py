@@ -25,8 +25,8 @@ def test_grid_product_and_types():
 
 
 def test_point_args_and_flatten():
-    args = point_args("optimise-forging", {"--mu": 0.1, "R": 0.1 + 0.2}, "o", ["--maxiter", 2])
-    assert args == ["optimise-forging", "--out", "o", "-q", "--mu", "0.1", "--set",
+    args = point_args("optimize-forging", {"--mu": 0.1, "R": 0.1 + 0.2}, "o", ["--maxiter", 2])
+    assert args == ["optimize-forging", "--out", "o", "-q", "--mu", "0.1", "--set",
                     f"R={0.1 + 0.2!r}", "--maxiter", "2"]
     flat = flatten({"a": {"b": 1.5, "c": [1, 2]}, "w": ["x", "y"], "e": [], "long": list(range(9)),
                     "loads": [{"c": 0.1}], "s": "txt", "n": None})

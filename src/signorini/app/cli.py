@@ -65,6 +65,10 @@ class _OnceFilter(logging.Filter):
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv:
+        argv[0], notice = registry.current_name(argv[0])
+        if notice:
+            print(f"signorini: {notice}", file=sys.stderr)
     parser = build_parser(argv[0] if argv and argv[0] in registry.COMMANDS else None)
     extra: list[str] = []
     if argv[:1] == ["sweep"] and "--" in argv:  # arguments after -- go to every run of the sweep

@@ -17,13 +17,25 @@ COMMANDS = {
     "hertz": "signorini.app.commands.hertz",
     "hertz-friction": "signorini.app.commands.hertz_friction",
     "forging": "signorini.app.commands.forging",
-    "optimise-forging": "signorini.app.commands.optimise_forging",
+    "optimize-forging": "signorini.app.commands.optimize_forging",
     "sweep": "signorini.app.commands.sweep",
     "run": "signorini.app.commands.run",
 }
 
 #: the commands a sweep can run at every point
 SWEEPABLE = tuple(n for n in COMMANDS if n != "sweep")
+
+#: old command names, accepted for one release with a notice: old -> new
+RENAMED = {"optimise-forging": "optimize-forging"}
+
+
+def current_name(name: str) -> tuple[str, str | None]:
+    """(the command's name, a deprecation notice or None) for a name as typed."""
+    if name in RENAMED:
+        new = RENAMED[name]
+        return new, (f"the command {name!r} is now {new!r} (one spelling, as in the library's "
+                     "optimize); the old name goes in the next release")
+    return name, None
 
 
 def command(name: str) -> ModuleType:

@@ -1,7 +1,7 @@
 """Parameter sweeps and per-mu optimisations as independent tasks on Dask.
 
 A *sweep* runs one ``signorini`` command (``hertz``, ``hertz-friction``,
-``forging``, ``optimise-forging``, ``run``) once per point of a grid of
+``forging``, ``optimize-forging``, ``run``) once per point of a grid of
 parameter values, each point as an independent task, and collects every
 point's ``summary.json`` into one table::
 
@@ -29,7 +29,7 @@ for ``hertz``). Each worker runs one single-threaded JAX/XLA
 
 Grid names: a plain name (``R``, ``mu``, ``phi0``) is passed as
 ``--set NAME=VALUE``; a name starting with ``--`` is passed as that option,
-``--NAME VALUE`` (e.g. ``--refine=0,1`` or, for ``optimise-forging``, which
+``--NAME VALUE`` (e.g. ``--refine=0,1`` or, for ``optimize-forging``, which
 has no ``--set``, ``--mu=0.1,0.2``).
 
 A point that fails (exit code 1: the solve failed; 2: bad input, also
@@ -50,8 +50,8 @@ directory relative to ``out``); then the summary's entries (``status`` and
   an empty or longer list, or a list of strings (``warnings``), is reduced to its length
   (``newton_residuals.0.len``, ``warnings.len``).
 
-The per-mu preform optimisations of ``optimise-forging`` use the same tasks
-(:func:`map_tasks`), see :mod:`signorini.app.commands.optimise_forging`.
+The per-mu preform optimisations of ``optimize-forging`` use the same tasks
+(:func:`map_tasks`), see :mod:`signorini.app.commands.optimize_forging`.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ Newton failure is answered by the objective's penalty (a large finite value
 and a gradient back towards the last good point), so the line search backs off.
 
 The optimisation runs, their files and the parallel tasks are the
-``optimise-forging`` command's (:mod:`signorini.app.commands.optimise_forging`).
+``optimize-forging`` command's (:mod:`signorini.app.commands.optimize_forging`).
 """
 
 from __future__ import annotations

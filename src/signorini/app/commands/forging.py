@@ -157,7 +157,8 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "params": v,
         "mesh": {**info, "dofs": int(model.n_dof)},
         "steps": steps,
-        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
+        "solver": solver.name, "symmetric_factorization": sol.symmetric,
+        "symmetric_factorisation": sol.symmetric,  # deprecated spelling, kept for 0.2
         "F": float(F),
         "dF_ddm": dF,
         "dF_fd": fd if fd_check else "not computed (--no-fd)",

@@ -166,7 +166,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "steps": steps,
         "coarse_start": coarse if coarse else (skipped or "no coarser mesh"),
         "finite_strain": finite_strain,
-        "solver": solver.name, "symmetric_factorisation": sol.symmetric,
+        "solver": solver.name, "symmetric_factorization": sol.symmetric,
+        "symmetric_factorisation": sol.symmetric,  # deprecated spelling, kept for 0.2
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "loads": [{k: val for k, val in lv.items() if k != "contact"} for lv in levels],
         "c_over_a": [lv["c_over_a"] for lv in levels],

@@ -3,6 +3,8 @@ per point, collected into sweep.csv and sweep.json."""
 
 from __future__ import annotations
 
+import sys
+
 from ...errors import InputError
 from .. import registry, sweep
 from ..options import Formatter, dask_options
@@ -23,7 +25,7 @@ def add_parser(sub) -> None:
                     "its exit code and reason; the sweep goes on. Arguments after -- are passed "
                     "to every run, e.g.: signorini sweep hertz --out s --set R=1,1.5,2 -- --no-fd")
     sw.add_argument("sweep_command", metavar="COMMAND",
-                    choices=registry.SWEEPABLE,
+                    choices=registry.SWEEPABLE + tuple(registry.RENAMED),
                     help="the command to run at every point")
     sw.add_argument("--out", required=True, metavar="DIR", help="output directory")
     sw.add_argument("--set", action="append", default=[], metavar="NAME=V1,V2,...",
@@ -38,6 +40,9 @@ def add_parser(sub) -> None:
 
 def execute(args) -> int:
     """Run the command for parsed ``args``; the exit code."""
+    args.sweep_command, notice = registry.current_name(args.sweep_command)
+    if notice:
+        print(f"signorini: {notice}", file=sys.stderr)
     try:
         points = sweep.grid(args.set + ["--" + o for o in args.option])
     except ValueError as e:

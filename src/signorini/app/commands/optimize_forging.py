@@ -1,4 +1,4 @@
-"""``signorini optimise-forging``: the preform optimisation of paper Figs. 8-9,
+"""``signorini optimize-forging``: the preform optimisation of paper Figs. 8-9,
 one BFGS run per friction coefficient (one Dask task each).
 
 :func:`run` writes, per mu, into ``out/mu_<mu>/``: ``history.csv`` (every
@@ -6,7 +6,7 @@ evaluation, appended as it is done), ``summary.json``, ``shape.png`` (optimal
 preform and its deformed shape), ``convergence.png`` (F and |grad F| against
 iteration), ``forging.pvd`` (+ one VTU per increment of the optimal process);
 and into ``out/``: ``shapes.png`` (all mu: optimal preform radii r0(Z) and
-final profiles) and ``summary.json`` (all mu). :func:`optimise_mus_parallel`
+final profiles) and ``summary.json`` (all mu). :func:`optimize_mus_parallel`
 does the same with one Dask task per mu."""
 
 from __future__ import annotations
@@ -33,13 +33,13 @@ from ..sweep import map_tasks, single_threaded_env
 
 log = logging.getLogger("signorini")
 
-NAME = "optimise-forging"
+NAME = "optimize-forging"
 
 
 def add_parser(sub) -> None:
     """Add this command's sub-parser to ``sub``."""
     o = sub.add_parser(
-        "optimise-forging", formatter_class=Formatter,
+        "optimize-forging", formatter_class=Formatter,
         help="find the forging preform whose free surface ends as a cylinder (paper Figs. 8-9)",
         description="For each friction coefficient, minimise the forging objective F = sum "
                     "(r_k - h0)^2 over phi0..phi4 from the cylinder phi = 0.7 h0, with gradients "
@@ -79,7 +79,7 @@ def execute(args) -> int:
                   resume=args.resume, solver=args.solver)
     if len(mus) > 1 and not args.sequential:  # one Dask task per mu
 
-        s = optimise_mus_parallel(args.out, mus, scheduler=args.scheduler,
+        s = optimize_mus_parallel(args.out, mus, scheduler=args.scheduler,
                                         n_workers=args.workers, **kwargs)
     else:
         s = run(args.out, mus, **kwargs)
@@ -162,7 +162,7 @@ def _plot_shapes(path, runs: list[dict]):
     plt.close(fig)
 
 
-def optimise_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method: str = "BFGS",
+def optimize_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method: str = "BFGS",
                 gtol: float = 1e-6, maxiter: int = 50, gradient: str = "ddm", resume: bool = False,
                 solver="auto", rtol: float = 1e-11, phi_min: float = PHI_MIN) -> dict:
     """One mu: optimise, write ``out/mu_<mu>/`` and return its summary (see :func:`run`)."""
@@ -254,8 +254,8 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
             the file is appended to).
         solver, rtol: linear solver and Newton tolerance of the forging solves.
         mapper: ``mapper(out, mus, kwargs) -> [summary per mu]`` running
-            :func:`optimise_mu` for every mu (default: one after another here;
-            :func:`signorini.app.commands.optimise_forging.optimise_mus_parallel` passes Dask tasks).
+            :func:`optimize_mu` for every mu (default: one after another here;
+            :func:`signorini.app.commands.optimize_forging.optimize_mus_parallel` passes Dask tasks).
         extra_summary: entries added to the collected summary.
 
     Returns:
@@ -283,7 +283,7 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
     kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
                   gradient=gradient, resume=resume, solver=solver, rtol=rtol, phi_min=phi_min)
     if mapper is None:
-        runs = [optimise_mu(out, mu, **kwargs) for mu in mus]
+        runs = [optimize_mu(out, mu, **kwargs) for mu in mus]
     else:
         runs = mapper(out, mus, kwargs)
     _plot_shapes(out / "shapes.png", runs)
@@ -305,18 +305,18 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
 # --------------------------------------------------------------------------- forging optimisation
 
 def _optimise_one(out: str, mu: float, kwargs: dict) -> dict:
-    """One task: :func:`optimise_mu` (never raises)."""
+    """One task: :func:`optimize_mu` (never raises)."""
     single_threaded_env()
 
     t0 = time.perf_counter()
     try:
-        return optimise_mu(Path(out), mu, **kwargs)
+        return optimize_mu(Path(out), mu, **kwargs)
     except Exception as e:  # noqa: BLE001  (one mu failing must not stop the others)
         return {"mu": float(mu), "status": "failed", "reason": f"{type(e).__name__}: {e}",
                 "time_wall_s": time.perf_counter() - t0, "warnings": []}
 
 
-def optimise_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int = 50,
+def optimize_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int = 50,
                           method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50,
                           gradient: str = "ddm", resume: bool = False, solver="auto",
                           rtol: float = 1e-11, phi_min=None, scheduler=None, n_workers=None,
@@ -325,7 +325,7 @@ def optimise_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int
 
     Same arguments, files and returned summary as ``run`` (plus
     ``"parallel"`` in the summary): each task calls
-    :func:`optimise_mu`, which writes only
+    :func:`optimize_mu`, which writes only
     ``out/mu_<mu>/`` and returns its summary; ``shapes.png`` and
     ``summary.json`` for all mu are written here. A mu whose task raises is
     recorded as failed. Dask options as in :func:`run_sweep`.
