@@ -270,179 +270,224 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         if driver is not None:
             raise InputError(f"{type(c.method).__name__} is solved by {driver}, not by "
                              "signorini.solve (use AugmentedLagrangian for the single-Newton method)")
-    params = as_jax(problem.params)
-    model.check(problem.params)
-    # a pattern seen for the first time is analysed with every contact node closed
-    lin = TangentSolver(kept_solver(model, solver, stack), symmetric_candidate=not model.has_history,
-                        analysis=lambda: model.analysis_tangent(params))
-    ddm = ddm_for(model, names)
-    weights = model.convergence_weights(params)
-
-    sol = Solution(model, dict(problem.params), names)
-    sol.label = label
-    sol.solver = lin.solver.name
-    sol.linear_solver = lin.solver  # the object (kept analyses, user solvers) for an adjoint
-    checks.before_solve(model, params, sol)
-    inc_checks = checks.IncrementChecks(model, params, sol)
-    switches = None if switch_tol is None else nonsmooth.SwitchDetector(model, params, switch_tol)
-    progress = SolveProgress(label, steps)
-    w = np.zeros(model.n_dof)
-    state_n = model.initial_state(w, params)
-    state_dot = model.initial_state_sensitivity(params, names) if ddm is not None else None
-    inc_checks.start(w)
-
-    t, dt_nominal = 0.0, 1.0 / steps
-    t_prev, w_prev = None, None  # the converged state before (t, w), for the predictor
     if initial is not None:
         initial = np.asarray(initial, dtype=float)
         if initial.shape != (model.n_dof,) or not np.all(np.isfinite(initial)):
             raise InputError(f"initial must be a finite array of shape ({model.n_dof},) (one value "
                              f"per unknown), got shape {initial.shape}")
-    guides = None if guide is None else _Guide(guide, model)
-    dt, cuts, total_cuts = dt_nominal, 0, 0
+    path = _LoadPath(problem, model, names, steps, options, solver, label, initial,
+                     ddm_factorization, checkpoint, keep_factors, switch_tol, guide, stack)
+    return path.run(until)
 
-    def fail(message):
-        sol.status = "failed"
-        sol.reason = message
-        progress.close("failed")
-        return ConvergenceError(message, partial=sol)
 
-    while t < until - 1e-12:
-        dt = min(dt, until - t)
-        t_new = t + dt if until - (t + dt) > 1e-12 else until
-        steplog = StepLog(t_new, dt)
-        sol.log.append(steplog)
+class _LoadPath:
+    """One solve: the load path t: 0 -> until in increments, each started from a
+    prediction, solved by Newton, cut on failure, and followed by the converged
+    tangent's sensitivities and the history update."""
+
+    def __init__(self, problem, model, names, steps, options, solver, label, initial,
+                 ddm_factorization, checkpoint, keep_factors, switch_tol, guide, stack):
+        self.model, self.names, self.steps, self.options = model, names, steps, options
+        self.initial, self.ddm_factorization = initial, ddm_factorization
+        self.checkpoint, self.keep_factors = checkpoint, keep_factors
+        self.params = params = as_jax(problem.params)
+        model.check(problem.params)
+        # a pattern seen for the first time is analysed with every contact node closed
+        self.lin = TangentSolver(kept_solver(model, solver, stack),
+                                 symmetric_candidate=not model.has_history,
+                                 analysis=lambda: model.analysis_tangent(params))
+        self.ddm = ddm_for(model, names)
+        self.weights = model.convergence_weights(params)
+        self.sol = sol = Solution(model, dict(problem.params), names)
+        sol.label = label
+        sol.solver = self.lin.solver.name
+        sol.linear_solver = self.lin.solver  # the object (kept analyses, user solvers) for an adjoint
+        checks.before_solve(model, params, sol)
+        self.inc_checks = checks.IncrementChecks(model, params, sol)
+        self.switches = None if switch_tol is None else nonsmooth.SwitchDetector(model, params, switch_tol)
+        self.progress = SolveProgress(label, steps)
+        self.w = np.zeros(model.n_dof)
+        self.state_n = model.initial_state(self.w, params)
+        self.state_dot = model.initial_state_sensitivity(params, names) if self.ddm is not None else None
+        self.inc_checks.start(self.w)
+        self.t, self.dt_nominal = 0.0, 1.0 / steps
+        self.t_prev, self.w_prev = None, None  # the converged state before (t, w), for the predictor
+        self.guides = None if guide is None else _Guide(guide, model)
+        self.dt, self.cuts, self.total_cuts = self.dt_nominal, 0, 0
+
+    def fail(self, message):
+        """The error that ends the solve, with the converged increments kept in it."""
+        self.sol.status = "failed"
+        self.sol.reason = message
+        self.progress.close("failed")
+        return ConvergenceError(message, partial=self.sol)
+
+    def run(self, until: float) -> Solution:
+        sol = self.sol
+        while self.t < until - 1e-12:
+            self.dt = min(self.dt, until - self.t)
+            t_new = self.t + self.dt if until - (self.t + self.dt) > 1e-12 else until
+            steplog = StepLog(t_new, self.dt)
+            sol.log.append(steplog)
+            w_trial, ref = self._start(t_new)
+            try:
+                w_trial, R, blocks, last_fac = newton(
+                    self.model, self.model.pattern, self.lin, w_trial, self.params, t_new,
+                    self.state_n, self.options, self.weights, ref, steplog)
+            except StepFailure as e:
+                steplog.reason = e.reason
+                self._cut(e, t_new, w_trial)
+                continue
+            self._accept(t_new, w_trial, R, blocks, last_fac, steplog)
+        self.inc_checks.final()
+        message = nonsmooth.warning(sol)
+        if message:
+            checks.warn(sol, message)
+        sol.symmetric = self.lin.symmetric
+        sol.status = "converged"
+        self.progress.close("converged")
+        return sol
+
+    def _start(self, t_new):
+        """The first Newton iterate of the increment to t_new and the reference norm
+        of its convergence test."""
+        model, params, t, w = self.model, self.params, self.t, self.w
         w_trial = w.copy()
         if model.prescribed.size:
             w_trial[model.prescribed] = np.asarray(model.prescribed_at(params, t_new))
         ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t_new))[model.free]))
-        first = not sol.increments and t == 0.0
-        started = first and initial is not None
+        first = not self.sol.increments and t == 0.0
+        started = first and self.initial is not None
         # a coarser solve of the same path: w_n + P(w^c_{n+1} - w^c_n)
-        guided = guides is not None and not started and guides.covers(t_new)
+        guided = self.guides is not None and not started and self.guides.covers(t_new)
         # else linear extrapolation of the last two converged states (a quadratic through
         # three needs more Newton iterations on the frictional Hertz path: zones growing
         # like sqrt(t) are not smooth in t; docs/theory.md §10.3)
-        predicted = (not started and not guided and options.predictor == "extrapolate"
-                     and w_prev is not None)
+        predicted = (not started and not guided and self.options.predictor == "extrapolate"
+                     and self.w_prev is not None)
         if started or guided or predicted:
             # the reference norm of the convergence test is that of the unpredicted start
             # (the last state under the new load), so that a better start does not make
             # the test stricter than the round-off floor, where Newton would stagnate
             # (docs/theory.md §10.3)
-            R0 = _residual(model, w_trial, params, t_new, state_n)[model.free]
-            ref = max(ref, float(np.linalg.norm(R0 * weights[model.free])))
+            R0 = _residual(model, w_trial, params, t_new, self.state_n)[model.free]
+            ref = max(ref, float(np.linalg.norm(R0 * self.weights[model.free])))
             if started:
-                start = initial
+                start = self.initial
             elif guided:
-                start = guides.start(t, t_new, w, first)
+                start = self.guides.start(t, t_new, w, first)
             else:
-                start = w + (t_new - t) / (t - t_prev) * (w - w_prev)
+                start = w + (t_new - t) / (t - self.t_prev) * (w - self.w_prev)
             w_trial[model.free] = start[model.free]
-        try:
-            w_trial, R, blocks, last_fac = newton(model, model.pattern, lin, w_trial, params,
-                                                  t_new, state_n, options, weights, ref, steplog)
-        except StepFailure as e:
-            steplog.reason = e.reason
-            reached = (f"{len(sol.increments)} increments converged (kept in the error's .partial); "
-                       f"the load factor reached is t = {t:.6g}")
-            if e.stagnated:
-                raise fail(f"at t={t_new:.6g}: {e.reason}. {reached}.") from None
-            if e.fatal:
-                raise fail(_diagnose(model, w_trial, params, t_new, e.reason, len(sol.increments))) from None
-            advice = ("Try more load steps (steps=...), a different eps, or check the loads, "
-                      "supports and material.")
-            if cuts >= options.max_cuts:
-                raise fail(f"Newton failed at t={t_new:.6g} after {cuts} step cuts ({e.reason}). "
-                           f"{reached}. {advice}") from None
-            if total_cuts >= options.max_total_cuts:
-                raise fail(f"Newton failed at t={t_new:.6g} ({e.reason}) and the budget of "
-                           f"{options.max_total_cuts} step cuts for the whole load path is spent "
-                           f"(NewtonOptions.max_total_cuts). {reached}. {advice}") from None
-            if 0.5 * dt < options.min_step * (1 - 1e-9):
-                raise fail(f"Newton failed at t={t_new:.6g} ({e.reason}) with a step of {dt:.3g}; "
-                           f"halving it would go below the smallest step {options.min_step:.3g} "
-                           f"(NewtonOptions.min_step). {reached}. {advice}") from None
-            dt *= 0.5
-            cuts += 1
-            total_cuts += 1
-            progress.cut(t_new, e.reason, dt)
-            continue
+        return w_trial, ref
+
+    def _cut(self, e: StepFailure, t_new, w_trial) -> None:
+        """Halve the increment after a Newton failure, or end the solve when the
+        failure is final or a floor or budget of the step cutting is reached."""
+        options, t, dt = self.options, self.t, self.dt
+        n_done = len(self.sol.increments)
+        reached = (f"{n_done} increments converged (kept in the error's .partial); "
+                   f"the load factor reached is t = {t:.6g}")
+        if e.stagnated:
+            raise self.fail(f"at t={t_new:.6g}: {e.reason}. {reached}.") from None
+        if e.fatal:
+            raise self.fail(_diagnose(self.model, w_trial, self.params, t_new, e.reason, n_done)) from None
+        advice = ("Try more load steps (steps=...), a different eps, or check the loads, "
+                  "supports and material.")
+        if self.cuts >= options.max_cuts:
+            raise self.fail(f"Newton failed at t={t_new:.6g} after {self.cuts} step cuts ({e.reason}). "
+                            f"{reached}. {advice}") from None
+        if self.total_cuts >= options.max_total_cuts:
+            raise self.fail(f"Newton failed at t={t_new:.6g} ({e.reason}) and the budget of "
+                            f"{options.max_total_cuts} step cuts for the whole load path is spent "
+                            f"(NewtonOptions.max_total_cuts). {reached}. {advice}") from None
+        if 0.5 * dt < options.min_step * (1 - 1e-9):
+            raise self.fail(f"Newton failed at t={t_new:.6g} ({e.reason}) with a step of {dt:.3g}; "
+                            f"halving it would go below the smallest step {options.min_step:.3g} "
+                            f"(NewtonOptions.min_step). {reached}. {advice}") from None
+        self.dt *= 0.5
+        self.cuts += 1
+        self.total_cuts += 1
+        self.progress.cut(t_new, e.reason, self.dt)
+
+    def _accept(self, t_new, w_trial, R, blocks, last_fac, steplog) -> None:
+        """Record the converged increment: switch points, the kept factor, the
+        sensitivities, the history update; then move on."""
+        model, params, sol = self.model, self.params, self.sol
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
-        if switches is not None:
-            inc.switches = switches(to_device(w_trial), params, t_new, state_n)
+        if self.switches is not None:
+            inc.switches = self.switches(to_device(w_trial), params, t_new, self.state_n)
         t_k = time.perf_counter()
-        K = model.pattern.assemble(blocks) if keep_factors or ddm is not None else None
+        K = model.pattern.assemble(blocks) if self.keep_factors or self.ddm is not None else None
         t_k = time.perf_counter() - t_k  # booked with the DDM's factorisation, which it serves
         # the pseudo-loads need no factorisation: computed first, so that each solve
         # follows its factorisation while MKL's threads are awake (DDM.pseudo_loads)
         try:
-            loads = None if ddm is None else ddm.pseudo_loads(
-                to_device(w_trial), params, t_new, state_n, state_dot, reuse_stiffness=steps >= 3)
+            loads = None if self.ddm is None else self.ddm.pseudo_loads(
+                to_device(w_trial), params, t_new, self.state_n, self.state_dot,
+                reuse_stiffness=self.steps >= 3)
         except NonDifferentiableError as e:  # keep what converged
-            raise fail(str(e)) from None
-        if keep_factors:
+            raise self.fail(str(e)) from None
+        if self.keep_factors:
             try:
-                inc.factor = _own_factor(lin, K)
+                inc.factor = _own_factor(self.lin, K)
             except SingularTangentError as e:
-                raise fail(f"the converged tangent at t={t_new:.6g} is singular, so no adjoint "
-                           f"can be computed: {e}") from None
-        if ddm is not None:
-            t0 = time.perf_counter() - t_k
-            fac = inc.factor  # kept for an adjoint (keep_factors): the DDM uses it as well
-            reused = fac is None and ddm_factorization == "reuse" and last_fac is not None
-            if reused:
-                # the last Newton factor preconditions refinement against the exact K;
-                # kept only if the sensitivities reach the backward error of a fresh solve
-                fac = last_fac.refined_for(K)
-            w_dot = None
-
-            def back_substitute(fac, or_none=False):
-                try:
-                    return ddm.back_substitute(fac, loads)
-                except SingularTangentError as e:
-                    if or_none:  # a reused factor: factorise instead
-                        return None, None
-                    raise fail(f"the sensitivity solve at t={t_new:.6g} failed: {e}") from None
-
-            if fac is not None:
-                t1 = time.perf_counter()
-                w_dot, timing = back_substitute(fac, or_none=reused)
-                if reused and (w_dot is None or fac.backward_error > REFINE_TOL):
-                    w_dot, reused = None, False  # failed or short of a fresh solve: factorise
-            if w_dot is None:
-                try:
-                    fac = lin.factorize(K)
-                except SingularTangentError as e:
-                    raise fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
-                               f"sensitivities are undefined: {e}") from None
-                t1 = time.perf_counter()
-                w_dot, timing = back_substitute(fac)
-            timing["factorization"] = t1 - t0
-            timing["reused_factorization"] = reused
-            timing["refinements"] = fac.refinements
-            # finite: the pseudo-loads were checked, every solve is (linsolve.Factor)
-            inc.sens = {n: w_dot[k] for k, n in enumerate(names)}
-            inc.timing = timing
-        state_n, state_dot = model.update_state(inc, params, t_new, state_n, state_dot, names)
-        if checkpoint > 1 and sol.increments and len(sol.increments) % checkpoint:
+                raise self.fail(f"the converged tangent at t={t_new:.6g} is singular, so no adjoint "
+                                f"can be computed: {e}") from None
+        if self.ddm is not None:
+            self._sensitivities(inc, K, loads, last_fac, t_new, t_k)
+        self.state_n, self.state_dot = model.update_state(inc, params, t_new, self.state_n,
+                                                          self.state_dot, self.names)
+        if self.checkpoint > 1 and sol.increments and len(sol.increments) % self.checkpoint:
             sol.increments[-1].state = None  # not a checkpoint: recomputed when needed
         sol.increments.append(inc)
-        progress.increment(t_new, steplog)
-        inc_checks.after(w_trial, t_new, len(sol.increments))
-        t_prev, w_prev = t, w
-        w, t = w_trial, t_new
-        cuts = 0  # max_cuts counts the halvings of one increment
-        if dt < dt_nominal:
-            dt = min(2.0 * dt, dt_nominal)  # grow back after a successful cut increment
-    inc_checks.final()
-    message = nonsmooth.warning(sol)
-    if message:
-        checks.warn(sol, message)
-    sol.symmetric = lin.symmetric
-    sol.status = "converged"
-    progress.close("converged")
-    return sol
+        self.progress.increment(t_new, steplog)
+        self.inc_checks.after(w_trial, t_new, len(sol.increments))
+        self.t_prev, self.w_prev = self.t, self.w
+        self.w, self.t = w_trial, t_new
+        self.cuts = 0  # max_cuts counts the halvings of one increment
+        if self.dt < self.dt_nominal:
+            self.dt = min(2.0 * self.dt, self.dt_nominal)  # grow back after a successful cut increment
+
+    def _sensitivities(self, inc, K, loads, last_fac, t_new, t_k) -> None:
+        """The DDM of the converged increment: one back-substitution per parameter
+        with the converged tangent (or the last Newton factor, refined, if asked)."""
+        t0 = time.perf_counter() - t_k
+        fac = inc.factor  # kept for an adjoint (keep_factors): the DDM uses it as well
+        reused = fac is None and self.ddm_factorization == "reuse" and last_fac is not None
+        if reused:
+            # the last Newton factor preconditions refinement against the exact K;
+            # kept only if the sensitivities reach the backward error of a fresh solve
+            fac = last_fac.refined_for(K)
+        w_dot = None
+
+        def back_substitute(fac, or_none=False):
+            try:
+                return self.ddm.back_substitute(fac, loads)
+            except SingularTangentError as e:
+                if or_none:  # a reused factor: factorise instead
+                    return None, None
+                raise self.fail(f"the sensitivity solve at t={t_new:.6g} failed: {e}") from None
+
+        if fac is not None:
+            t1 = time.perf_counter()
+            w_dot, timing = back_substitute(fac, or_none=reused)
+            if reused and (w_dot is None or fac.backward_error > REFINE_TOL):
+                w_dot, reused = None, False  # failed or short of a fresh solve: factorise
+        if w_dot is None:
+            try:
+                fac = self.lin.factorize(K)
+            except SingularTangentError as e:
+                raise self.fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
+                                f"sensitivities are undefined: {e}") from None
+            t1 = time.perf_counter()
+            w_dot, timing = back_substitute(fac)
+        timing["factorization"] = t1 - t0
+        timing["reused_factorization"] = reused
+        timing["refinements"] = fac.refinements
+        # finite: the pseudo-loads were checked, every solve is (linsolve.Factor)
+        inc.sens = {n: w_dot[k] for k, n in enumerate(self.names)}
+        inc.timing = timing
 
 
 def _residual(model, w, params, t, state_n) -> np.ndarray:
