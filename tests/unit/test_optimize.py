@@ -13,6 +13,7 @@ import pytest
 
 import signorini as sg
 from signorini.app.commands import optimize_forging as fo_cmd
+from signorini.design import evaluation
 from signorini.design import optimize as opt
 from signorini.problems import forging as fg
 from signorini.problems import forging_opt as fo
@@ -75,8 +76,8 @@ def test_forging_jac_equals_central_fd_of_fun(forging_objectives):
 def test_one_solve_per_fun_jac_pair(forging_objectives, monkeypatch, tmp_path):
     ddm, fd = forging_objectives
     calls = []
-    real = opt.solve
-    monkeypatch.setattr(opt, "solve", lambda *a, **k: calls.append(k.get("wrt")) or real(*a, **k))
+    real = evaluation.solve  # the solve an Objective's evaluation calls
+    monkeypatch.setattr(evaluation, "solve", lambda *a, **k: calls.append(k.get("wrt")) or real(*a, **k))
     x = np.array([0.71, 0.7, 0.69, 0.7, 0.74])
     n0 = ddm.n_solves
     F = ddm.fun(x)

@@ -27,7 +27,7 @@ from ..params import as_jax, check_names
 from ..sensitivity import nonsmooth
 from .._deprecation import pop_old
 from ..sensitivity.adjoint import Adjoint as AdjointEngine
-from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, check_method, method_named
+from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, from_keywords
 from ..algorithms.stepping import solve, structure_key
 from .finite_differences import finite_difference
 
@@ -170,7 +170,8 @@ def gradient(problem, response, wrt: Sequence[str] | None = None, *, method=None
         if wrt is not None:
             raise InputError("give the parameters once, as wrt= (params= is its old name)")
         wrt = old.pop("params")
-    method = _method(method, old)
+    method = from_keywords(method, old, "signorini.gradient", (DDM, Adjoint, FiniteDifferences),
+                           "mode", "adjoint")
     if wrt is None:
         raise InputError("gradient needs the parameters to differentiate with respect to: wrt=[...]")
     if isinstance(wrt, str):
@@ -194,23 +195,6 @@ def gradient(problem, response, wrt: Sequence[str] | None = None, *, method=None
     if isinstance(method, DDM):
         return _ddm(problem, response, names, steps, increments, options, solver, label)
     return _fd(problem, response, names, steps, increments, options, solver, method, label)
-
-
-def _method(method, old: dict):
-    """The method object, from ``method=`` or from the 0.1 keywords (never both)."""
-    if method is not None:
-        if old:
-            raise InputError(f"give the method once, as method= ({', '.join(sorted(old))}= are its "
-                             "old spellings)")
-        return check_method(method, (DDM, Adjoint, FiniteDifferences), "signorini.gradient")
-    mode = old.get("mode", "adjoint")
-    if mode not in MODES:
-        raise InputError(f"mode must be one of {MODES}, got {mode!r}")
-    if mode != "adjoint" and ("checkpoint" in old or "factors" in old):
-        raise InputError("checkpoint= and factors= belong to the adjoint")
-    kw = {"adjoint": {k: old[k] for k in ("factors", "checkpoint") if k in old},
-          "fd": {"rel_step": old["fd_step"]} if "fd_step" in old else {}, "ddm": {}}[mode]
-    return method_named(mode, **kw)
 
 
 def _value(sol, fn, idx, key) -> float:

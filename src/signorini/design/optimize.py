@@ -53,29 +53,24 @@ convergence plots.
 
 from __future__ import annotations
 
-import contextlib
-import csv
 import itertools
 import logging
 import math
 import time
-import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 
 from .._deprecation import pop_old
-from ..model import checks
-from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, check_method, method_named
-from ..errors import ConvergenceError, InputError, SignoriniWarning, SolverError
-from .gradient import adjoint_gradient, is_factory
-from ..sensitivity import nonsmooth
+from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, from_keywords
+from ..errors import ConvergenceError, InputError
+from .gradient import is_factory
+from .evaluation import ObjectiveEvaluation
+from .history import Evaluation, append_rows, read_history, write_header
 from ..algorithms.newton import NewtonOptions
 from ..params import check_names
-from ..algorithms.stepping import solve
 
 log = logging.getLogger("signorini")
 
@@ -87,71 +82,7 @@ METHODS = ("BFGS", "L-BFGS-B", "SLSQP")
 _UID = itertools.count()
 
 
-@dataclass
-class Evaluation:
-    """One solve of the objective at a design point.
-
-    Attributes:
-        index: 1-based number of the evaluation (continues an appended history).
-        kind: ``"value+gradient"`` (DDM: one solve gives both), ``"value"``
-            (``gradient_mode="fd"``: the value at a design point) or ``"fd"``
-            (a perturbed point of a finite-difference gradient).
-        x: the design point (parameter values, in the order of ``names``).
-        F: the value returned to the optimiser (``F_fail`` when failed).
-        grad: the gradient returned (None for ``"value"``/``"fd"`` kinds).
-        status: ``"ok"``, ``"failed"`` (Newton did not converge) or ``"invalid"``
-            (the design was rejected: inverted elements, ``validate``).
-        reason: the error message of a failure.
-        newton_iterations: Newton iterations of the solve, over all attempted
-            increments (cut ones included).
-        increments: converged load increments.
-        cuts: increments that failed and were cut (the load path then differs
-            from the nominal one; the gradient is that of the path taken).
-        time: wall time of the evaluation [s].
-        warnings: warnings of the solve (``Solution.warnings``).
-    """
-
-    index: int
-    kind: str
-    x: np.ndarray
-    F: float
-    grad: np.ndarray | None
-    status: str
-    reason: str = ""
-    newton_iterations: int = 0
-    increments: int = 0
-    cuts: int = 0
-    time: float = 0.0
-    warnings: list = field(default_factory=list)
-    error: BaseException | None = field(default=None, repr=False)
-
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
-
-    @property
-    def grad_norm(self) -> float:
-        return float(np.linalg.norm(self.grad)) if self.grad is not None else math.nan
-
-
-class _OncePerMessage(logging.Filter):
-    """Drop log records whose message was already logged during this optimisation."""
-
-    def __init__(self, seen: set):
-        super().__init__()
-        self.seen = seen
-
-    def filter(self, record):
-        if record.levelno < logging.WARNING:
-            return True
-        msg = record.getMessage()
-        if msg in self.seen:
-            return False
-        self.seen.add(msg)
-        return True
-
-
-class Objective:
+class Objective(ObjectiveEvaluation):
     """F(x) = response of the solved problem at the parameters ``names = x``, with its gradient.
 
     Args:
@@ -211,19 +142,8 @@ class Objective:
         if wrt is None or response is None:
             raise InputError("an objective needs the design parameters (wrt) and a response")
         names = wrt
-        if method is not None:
-            if old.keys() & {"gradient_mode", "fd_step"}:
-                raise InputError("give the method once, as method= (gradient_mode= and fd_step= "
-                                 "are its old spellings)")
-            method = check_method(method, (DDM, Adjoint, FiniteDifferences), "Objective")
-        else:
-            gradient_mode = old.get("gradient_mode", "ddm")
-            if gradient_mode not in ("ddm", "adjoint", "fd"):
-                raise InputError(f"gradient_mode must be 'ddm', 'adjoint' or 'fd', got {gradient_mode!r}")
-            fd_step = old.get("fd_step", 1e-6)
-            if not (isinstance(fd_step, (int, float)) and fd_step > 0):
-                raise InputError(f"fd_step must be a positive number, got {fd_step!r}")
-            method = method_named(gradient_mode, **({"rel_step": fd_step} if gradient_mode == "fd" else {}))
+        method = from_keywords(method, old, "Objective", (DDM, Adjoint, FiniteDifferences),
+                               "gradient_mode", "ddm")
         if isinstance(names, str):
             raise InputError(f"names must be a list of parameter names, got the string {names!r}")
         self.names = [str(n) for n in names]
@@ -266,7 +186,7 @@ class Objective:
             if append and self.history.exists():
                 self._offset = len(read_history(self.history))
             else:
-                self._write_header(self.history)
+                write_header(self.history, self.names)
 
     # ------------------------------------------------------------ public API
     def fun(self, x) -> float:
@@ -359,214 +279,9 @@ class Objective:
     def write_csv(self, path) -> Path:
         """Write every evaluation of this objective (see :func:`read_history`)."""
         path = Path(path)
-        self._write_header(path)
-        with open(path, "a", newline="") as f:
-            wr = csv.writer(f)
-            for r in self.records:
-                wr.writerow(self._row(r))
+        write_header(path, self.names)
+        append_rows(path, self.names, self.records)
         return path
-
-    # -------------------------------------------------------------- internals
-    def _point(self, x) -> np.ndarray:
-        x = np.array(x, dtype=float).ravel()  # a copy
-        if x.size != len(self.names):
-            raise InputError(f"the design point has {x.size} value(s), expected {len(self.names)} "
-                             f"({self.names})")
-        return x + 0.0  # no -0.0: the cache key is the bytes of x
-
-    def _fn(self, model):
-        entry = self._fns.get(id(model))
-        if entry is None or entry[0] is not model:
-            fn = self.response(model) if self.factory else self.response
-            if not callable(fn):
-                raise InputError("the response factory must return a callable fn(w, params, t)")
-            entry = (model, fn)
-            self._fns[id(model)] = entry
-        return entry[1]
-
-    @contextlib.contextmanager
-    def _quiet(self):
-        """Each distinct warning of the solves is logged and warned once per objective."""
-        flt = _OncePerMessage(self._seen_logs)
-        log.addFilter(flt)
-        try:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always", SignoriniWarning)
-                yield
-        finally:
-            log.removeFilter(flt)
-        for w in caught:
-            msg = str(w.message)
-            if issubclass(w.category, SignoriniWarning) and msg in self.warnings:
-                continue
-            if issubclass(w.category, SignoriniWarning):
-                self.warnings.append(msg)
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-
-    def _solve(self, x, *, with_grad: bool, kind: str, keep: bool = True) -> Evaluation:
-        t0 = time.perf_counter()
-        k = x.tobytes()
-        names = self.names
-        status, reason, err, sol, F, g, its, n_inc, cuts, warns = ("ok", "", None, None, math.nan, None, 0,
-                                                                     0, 0, [])
-        with self._quiet():
-            try:
-                pvals = {n: float(v) for n, v in zip(names, x)}
-                if not np.all(np.isfinite(x)):
-                    raise InputError(f"the design point is not finite: {pvals}")
-                if self.validate is not None:
-                    self.validate({**self.problem.params, **pvals})
-                pb = self.problem.with_params(**pvals)
-                ddm = with_grad and self.gradient_mode == "ddm"
-                adjoint = with_grad and isinstance(self.method, Adjoint)
-                sol = solve(pb, steps=self.steps, wrt=names if ddm else (),
-                            method=self.method if ddm or adjoint else DDM(),
-                            options=self.options, solver=self.solver, label=self.label)
-            except ConvergenceError as e:
-                status, reason, err = "failed", str(e), e
-                part = e.partial
-                if part is not None:
-                    its = sum(s.iterations for s in part.log)
-                    n_inc = len(part.increments)
-                    cuts = sum(not s.converged for s in part.log)
-                    warns = list(part.warnings)
-            except InputError as e:
-                status, reason, err = "invalid", str(e), e
-            if sol is not None:
-                its = sum(s.iterations for s in sol.log)
-                n_inc = len(sol.increments)
-                cuts = sum(not s.converged for s in sol.log)
-                warns = list(sol.warnings)
-                val, dv = sol.response(self._fn(sol.model), self.increment, with_sensitivities=ddm,
-                                       key=self.key)
-                if np.size(val) != 1:
-                    raise InputError("the response must return a scalar, got an array of shape "
-                                     f"{np.shape(val)}")
-                if with_grad and not ddm:  # adjoint: one backward pass for all names
-                    try:
-                        dv = adjoint_gradient(sol, self._fn(sol.model), names,
-                                              increments=[self.increment],
-                                              solver=sol.linear_solver or self.solver)[1]
-                    except SolverError as e:
-                        status, reason, err = "failed", f"adjoint: {e}", ConvergenceError(str(e), partial=sol)
-                        dv = {n: math.nan for n in names}
-                    message = nonsmooth.warning(sol, names)
-                    if message:
-                        checks.warn(sol, message)
-                        warns = list(sol.warnings)
-                F = float(np.asarray(val).reshape(()))
-                if with_grad:
-                    g = np.array([float(np.asarray(dv[n]).reshape(())) for n in names])
-                if status == "ok" and (not np.isfinite(F) or
-                                       (g is not None and not np.all(np.isfinite(g)))):
-                    status, reason = "failed", f"the response or its gradient is not finite (F = {F})"
-                    err = ConvergenceError(reason, partial=sol)
-        if status != "ok":
-            if self.failure == "raise":
-                raise err
-            F, g = self._penalty(x, err)
-            if kind == "fd":
-                g = None  # a perturbed point of a difference quotient has no gradient of its own
-        ev = Evaluation(self._offset + len(self.records) + 1, kind, x, float(F),
-                        None if g is None else np.asarray(g, dtype=float), status, reason, its, n_inc,
-                        cuts, time.perf_counter() - t0, warns, err)
-        self.records.append(ev)
-        if kind != "final" or k not in self._cache:
-            self._cache[k] = ev
-        if ev.ok and sol is not None and keep and kind != "fd":
-            b = self.best
-            keys = {k}
-            if b is not None:
-                keys.add(b.x.tobytes())
-            self._solutions = {kk: s for kk, s in {**self._solutions, k: sol}.items() if kk in keys}
-        if self.history is not None:
-            with open(self.history, "a", newline="") as f:
-                csv.writer(f).writerow(self._row(ev))
-        log.info("%s evaluation %d (%s): F = %.10g%s, %d Newton iterations, %.2f s%s", self.label,
-                 ev.index, kind, ev.F, "" if ev.grad is None else f", |grad| = {ev.grad_norm:.4g}",
-                 its, ev.time, "" if ev.ok else f" [{status}: {reason.splitlines()[0][:200]}]")
-        return ev
-
-    def _penalty(self, x, err):
-        """(F_fail, gradient) of a failed point (module docstring)."""
-        good = [r for r in self.records if r.ok]
-        if self.failure_value is not None:
-            Ff = self.failure_value
-        elif good:
-            Fs = np.array([r.F for r in good])
-            scale = float(np.abs(Fs).max()) or 1.0
-            Ff = float(Fs.max()) + 10.0 * scale
-        else:
-            raise err  # nothing to compare with: the start point itself cannot be solved
-        g = np.zeros(len(self.names))
-        if good:
-            last = good[-1]
-            d = x - last.x
-            dd = float(d @ d)
-            if dd > 0 and np.isfinite(dd):
-                a = float(last.grad @ d) if last.grad is not None else 0.0
-                slope = max(6.0 * (Ff - last.F) - a, 2.0 * (Ff - last.F))
-                g = slope * d / dd
-                if not np.all(np.isfinite(g)):
-                    g = np.zeros(len(self.names))
-        return Ff, g
-
-    def _fd_gradient(self, x, ev) -> np.ndarray:
-        """Central differences of the value (one-sided where a perturbed solve fails)."""
-        g = np.zeros(len(self.names))
-        for i in range(len(self.names)):
-            h = self.method.step_for(x[i])
-            xp, xm = x.copy(), x.copy()
-            xp[i] += h
-            xm[i] -= h
-            ep, em = (self._cache.get(y.tobytes()) or self._solve(y, with_grad=False, kind="fd")
-                      for y in (xp, xm))
-            if ep.ok and em.ok:
-                g[i] = (ep.F - em.F) / (xp[i] - xm[i])
-            elif ep.ok:
-                g[i] = (ep.F - ev.F) / (xp[i] - x[i])
-            elif em.ok:
-                g[i] = (ev.F - em.F) / (x[i] - xm[i])
-        return g
-
-    def _columns(self) -> list[str]:
-        return (["eval", "kind", "status", "F", "grad_norm"] + [f"x_{n}" for n in self.names]
-                + [f"dF_d{n}" for n in self.names]
-                + ["newton_iterations", "increments", "cuts", "time_s", "reason"])
-
-    def _write_header(self, path: Path) -> None:
-        with open(path, "w", newline="") as f:
-            csv.writer(f).writerow(self._columns())
-
-    def _row(self, r: Evaluation) -> list:
-        g = r.grad if r.grad is not None else [math.nan] * len(self.names)
-        num = lambda v: repr(float(v) + 0.0)  # exact round trip of x for resuming
-        return ([r.index, r.kind, r.status, num(r.F), num(r.grad_norm)] + [num(v) for v in r.x]
-                + [num(v) for v in g] + [r.newton_iterations, r.increments, r.cuts, f"{r.time:.4f}",
-                                         r.reason.splitlines()[0] if r.reason else ""])
-
-
-def read_history(path, names: Sequence[str] | None = None) -> list[Evaluation]:
-    """The evaluations of a history CSV written by an :class:`Objective`
-    (``names``: the parameter order; default the file's ``x_*`` columns)."""
-    path = Path(path)
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
-        return []
-    if names is None:
-        names = [c[2:] for c in rows[0] if c.startswith("x_")]
-    missing = [n for n in names if f"x_{n}" not in rows[0]]
-    if missing:
-        raise InputError(f"the history {str(path)!r} has no column for {missing}")
-    out = []
-    for r in rows:
-        grad = np.array([float(r[f"dF_d{n}"]) for n in names])
-        out.append(Evaluation(int(r["eval"]), r["kind"], np.array([float(r[f"x_{n}"]) for n in names]),
-                              float(r["F"]), None if np.all(np.isnan(grad)) else grad, r["status"],
-                              r.get("reason", ""), int(r["newton_iterations"]), int(r["increments"]),
-                              int(r.get("cuts") or 0), float(r["time_s"])))
-    return out
 
 
 def _projected(g, x, bounds):

@@ -104,3 +104,26 @@ def check_method(method, allowed: tuple, where: str):
         names = " or ".join(f"signorini.{c.__name__}()" for c in allowed)
         raise InputError(f"{where}: method must be {names}, got {method!r}")
     return method
+
+
+def from_keywords(method, old: dict, where: str, allowed: tuple, mode_key: str, default: str):
+    """The method object of a call: ``method=`` itself, or one made from the 0.1
+    keywords in ``old`` (``mode_key`` = ``"ddm"``/``"adjoint"``/``"fd"``, ``fd_step``,
+    ``factors``, ``checkpoint``), never both."""
+    if method is not None:
+        if old:
+            raise InputError(f"give the method once, as method= ({', '.join(sorted(old))}= are its "
+                             "old spellings)")
+        return check_method(method, allowed, where)
+    mode = old.get(mode_key, default)
+    if mode not in BY_NAME:
+        raise InputError(f"{mode_key} must be one of {tuple(BY_NAME)}, got {mode!r}")
+    if mode != "adjoint" and ("checkpoint" in old or "factors" in old):
+        raise InputError("checkpoint= and factors= belong to the adjoint")
+    if "fd_step" in old:
+        step = old["fd_step"]
+        if isinstance(step, bool) or not isinstance(step, (int, float)) or not step > 0:
+            raise InputError(f"fd_step must be a positive number, got {step!r}")
+    kw = {"adjoint": {k: old[k] for k in ("factors", "checkpoint") if k in old},
+          "fd": {"rel_step": old["fd_step"]} if "fd_step" in old else {}, "ddm": {}}[mode]
+    return method_named(mode, **kw)
