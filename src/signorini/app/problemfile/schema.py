@@ -1,141 +1,11 @@
-"""Problem description files: a contact problem, its solve and its outputs in TOML.
+"""Reading a TOML problem file into a :class:`~signorini.model.problem.Problem` and
+a :class:`RunConfig` (the schema: :mod:`signorini.app.problemfile`)."""
 
-:func:`load` reads a file into a :class:`~signorini.model.problem.Problem` and a
-:class:`RunConfig`; :func:`run` also solves it (with DDM sensitivities) and
-writes the results into a directory. ``signorini run FILE --out DIR`` calls
-:func:`run`.
-
-Example (``block.toml``: an elastic block pressed against a rigid cylinder,
-half model with a symmetry line)::
-
-    title = "block on a cylinder"
-
-    [params]                 # named design parameters: derivatives are taken w.r.t. these
-    E = 100.0
-    nu = 0.3
-    P = 2.0
-    R = 20.0
-    W = 2.0
-
-    [mesh]                   # uniform nx x ny Q4 grid; or:  file = "body.msh"
-    type = "rectangle"
-    x = [0.0, "W"]           # a parameter name here makes W a shape parameter
-    y = [-2.0, 0.0]
-    nx = 32
-    ny = 16
-
-    [material]
-    type = "linear_elastic"  # or "neo_hooke" (finite strain)
-    E = "E"
-    nu = "nu"
-
-    [[fixed]]                # one table per prescribed displacement component
-    set = "left"
-    component = "x"          # 0 / 1 or "x" / "y"
-    value = 0.0              # default 0
-
-    [[load]]
-    type = "pressure"        # or "traction" with value = [fx, fy]
-    edges = "bottom"
-    value = "P"
-    resultant = true         # value is the resultant force (per unit thickness)
-
-    [[contact]]
-    edges = "top"
-    obstacle = { type = "circle", radius = "R", centre = [0.0, "R"] }
-    method = "al"            # "al" | "penalty" | "coulomb"
-    # eps = 400.0            # default E/h (h: shortest contact edge); required for "penalty"
-    # mu = 0.3               # "coulomb" only (required), with eps_t (default eps)
-    # kinematics = "auto"    # "auto" | "linear" | "finite"
-
-    [solve]
-    steps = 2                # equal load increments (cut automatically on failure)
-    sensitivities = ["R", "E", "W"]
-    rtol = 1e-10             # Newton tolerances (signorini.NewtonOptions)
-    max_iter = 25
-
-    [[response]]             # scalar results with their sensitivities, in summary.json
-    name = "p_max"
-    type = "max_pressure"    # | "normal_force" | "displacement" | "reaction"
-    surface = "top"          # contact edges (default: the first [[contact]])
-
-    [output]
-    vtu = true               # <stem>.vtu: last increment
-    pvd = true               # <stem>.pvd + <stem>_0001.vtu, ... when there are several increments
-    csv = true               # contact.csv (contact_1.csv, ... for further surfaces)
-
-Schema (every key not listed is an error; "number" means a number or the
-name of a parameter of ``[params]``, which makes it a design variable):
-
-``title``
-    optional string, copied to ``summary.json``.
-``[params]``
-    ``name = value`` (numbers). Parameter names used elsewhere must be defined
-    here (:class:`~signorini.errors.UnknownParameterError` otherwise).
-``[mesh]`` (required)
-    either ``file = "body.msh"`` (relative to the TOML file; read by
-    :func:`signorini.fem.meshfile.read_mesh`: gmsh physical groups of lines become edge
-    and node sets, of points node sets, plus ``all``), or
-    ``type = "rectangle"``, ``x = [x0, x1]``, ``y = [y0, y1]`` (numbers),
-    ``nx``, ``ny`` (cells, integers >= 1): sets ``left``, ``right``,
-    ``bottom``, ``top`` (edges and nodes) and ``all`` (nodes). A parameter
-    name among the corners makes that parameter a shape parameter (the exact
-    design velocity of the uniform grid is supplied).
-``[material]`` (required)
-    ``type`` = ``"linear_elastic"`` | ``"neo_hooke"``, ``E``, ``nu`` (numbers).
-``[[fixed]]``
-    ``set`` (node set), ``component`` (0, 1, "x" or "y"), ``value`` (number,
-    default 0; ramped with the load factor).
-``[[load]]``
-    ``type`` = ``"pressure"`` (``value``: number, positive pushes into the
-    body) | ``"traction"`` (``value = [fx, fy]``), ``edges`` (edge set),
-    ``resultant`` (bool, default false: value is the resultant force).
-``[[contact]]``
-    ``edges`` (edge set); ``obstacle`` = ``{type = "circle", radius, centre =
-    [cx, cy], motion = [vx, vy]}`` or ``{type = "line", point = [x, y],
-    normal = [nx, ny], motion = [vx, vy]}`` (normal points into the body;
-    motion: displacement of the obstacle at t = 1, default [0, 0]);
-    ``method`` = ``"al"`` (default) | ``"penalty"`` | ``"coulomb"``; ``eps``
-    (> 0; default E/h with h the shortest edge of the surface, evaluated at the
-    nominal values; required for ``"penalty"``, whose solution depends on it);
-    ``mu`` (``"coulomb"`` only, required), ``eps_t`` (``"coulomb"`` only,
-    default ``eps``); ``kinematics`` = ``"auto"`` | ``"linear"`` | ``"finite"``.
-``[solve]``
-    ``steps`` (int >= 1, default 1), ``sensitivities`` (list of parameter
-    names), and the Newton options ``rtol``, ``atol``, ``max_iter``,
-    ``max_cuts``, ``predictor`` (``"extrapolate"`` | ``"none"``) (defaults of
-    :class:`~signorini.algorithms.newton.NewtonOptions`).
-``[[response]]``
-    ``name`` (unique), ``type``: ``"max_pressure"`` (largest p_N of a surface,
-    with its DDM sensitivity at that node) or ``"normal_force"`` (sum of p_N
-    A_S over the surface) with optional ``surface`` (edges of a
-    ``[[contact]]``, default the first); ``"displacement"`` (mean of a
-    displacement component over a node set) or ``"reaction"`` (sum of the
-    support reactions of a component over a node set; every DOF must be
-    prescribed by ``[[fixed]]``; the force of the supports on the body) with
-    ``set`` and ``component``.
-``[output]``
-    ``vtu``, ``pvd``, ``csv`` (bools, default true).
-
-Outputs of :func:`run` in ``out``: ``summary.json`` (status, the failure
-reason, parameters, mesh size, load factors and Newton iterations per
-increment, warnings, responses and their sensitivities, per-surface contact
-summary, files written), ``contact.csv`` per contact surface at the last
-increment (``node, x_ref, y_ref, x, y, p_N, p_T, gap, dp_N_d<name>...``; with
-friction also ``dp_T_d<name>``, ``status`` and ``slip``), ``<stem>.vtu`` (last
-increment; ``<stem>`` is the TOML file's name without extension) and, when
-there are several increments, the ParaView series ``<stem>.pvd``.
-
-Every problem in the file is reported as :class:`~signorini.errors.InputError`
-naming the file and the key, e.g. ``problem.toml: [material] unknown key
-'Ee'; allowed: E, nu, type``.
-"""
 
 from __future__ import annotations
 
 import difflib
 import math
-import time
 import tomllib
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -143,23 +13,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ..contact import AugmentedLagrangian, Contact, Coulomb, Penalty
-from ..errors import InputError, SolverError, UnknownParameterError
-from ..fem.loads import Fixed, Pressure, Traction
-from ..materials import LinearElastic, NeoHooke
-from ..fem.mesh import Mesh, rectangle
-from ..algorithms.newton import NewtonOptions
-from ..contact.obstacles import Circle, Line
-from ..model.problem import Problem
-from .._jax import jnp
-from ..algorithms.stepping import solve
-from ..fem.meshfile import read_mesh
-from ..linsolve import check_size
-from ..post import files as io
-from .runner import prepare_output
-from .runner import use_solver
+from ...contact import AugmentedLagrangian, Contact, Coulomb, Penalty
+from ...errors import InputError, UnknownParameterError
+from ...fem.loads import Fixed, Pressure, Traction
+from ...materials import LinearElastic, NeoHooke
+from ...fem.mesh import Mesh, rectangle
+from ...algorithms.newton import NewtonOptions
+from ...contact.obstacles import Circle, Line
+from ...model.problem import Problem
+from ...fem.meshfile import read_mesh
 
-__all__ = ["Response", "RunConfig", "load", "run"]
+
+__all__ = ["Response", "RunConfig", "load"]
+
 
 _REQUIRED = object()
 
@@ -684,166 +550,3 @@ def load(path) -> tuple[Problem, RunConfig]:
 
 # ---------------------------------------------------------------- running
 
-def _jsonable(o):
-    if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    if o is None or isinstance(o, (str, int, float, bool)):
-        return o
-    return str(o)
-
-
-def _response_values(sol, problem: Problem, r: Response) -> dict:
-    """Value and DDM sensitivities of one response at the last increment."""
-    names = list(sol.names)
-    if r.type == "max_pressure":
-        c = sol.contact(-1, r.surface)
-        j = int(np.argmax(c["p_N"]))
-        return {"value": float(c["p_N"][j]), "node": int(c["node"][j]),
-                "x_ref": [float(v) for v in c["x_ref"][j]],
-                "sensitivities": {n: float(c[f"dp_N_d{n}"][j]) for n in names}}
-    if r.type == "normal_force":
-
-        m, k = sol.model, r.surface
-
-        def force(w, p, t):
-            f = m.contact_fields(w, p, t, k)
-            return jnp.sum(f["p_N"] * f["area"])
-
-        val, d = sol.response(force, -1, key=("problemfile.normal_force", k))
-        return {"value": float(val), "sensitivities": {n: float(d[n]) for n in names}}
-    nodes = problem.mesh.node_set(r.node_set)
-    if r.type == "displacement":
-        val = float(sol.displacement()[nodes, r.component].mean())
-        sens = {n: float(sol.displacement_sensitivity(n)[nodes, r.component].mean()) for n in names}
-    else:
-        # force of the supports on the body (Solution.reactions)
-        val = float(sol.reactions()[nodes, r.component].sum())
-        sens = {n: float(sol.reaction_sensitivity(n)[nodes, r.component].sum()) for n in names}
-    return {"value": val, "sensitivities": sens}
-
-
-def _contact_csv(sol, k: int, path: Path):
-
-    c = sol.contact(-1, k)
-    cols = {"node": c["node"], "x_ref": c["x_ref"][:, 0], "y_ref": c["x_ref"][:, 1],
-            "x": c["x"][:, 0], "y": c["x"][:, 1], "p_N": c["p_N"], "p_T": c["p_T"], "gap": c["gap"]}
-    for n in sol.names:
-        cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
-    if "status" in c:
-        for n in sol.names:
-            cols[f"dp_T_d{n}"] = c[f"dp_T_d{n}"]
-        cols["status"] = c["status"]
-        cols["slip"] = c["slip"]
-    io.write_csv(path, cols)
-    return c
-
-
-def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: dict) -> None:
-    """Files of the last converged increment (and the series); fills ``summary``."""
-    files = summary["outputs"]
-    if not sol.increments:
-        return
-    surfaces = []
-    for k, s in enumerate(sol.model.surfaces):
-        name = "contact.csv" if k == 0 else f"contact_{k}.csv"
-        if cfg.csv:
-            c = _contact_csv(sol, k, out / name)
-            files.append(name)
-        else:
-            c = sol.contact(-1, k)
-        surfaces.append({"edges": s.contact.edges, "method": type(s.contact.method).__name__,
-                         "nodes": int(len(s.nodes)), "closed_nodes": int(np.sum(c["p_N"] > 0)),
-                         "max_p_N": float(np.max(c["p_N"])) + 0.0 if len(c["p_N"]) else 0.0})
-    summary["contact"] = surfaces
-    summary["responses"] = {r.name: {"type": r.type, **_response_values(sol, problem, r)}
-                            for r in cfg.responses}
-    if cfg.vtu:
-        io.write_vtu(sol, out / f"{cfg.stem}.vtu")
-        files.append(f"{cfg.stem}.vtu")
-    if cfg.pvd and (cfg.steps > 1 or len(sol.increments) > 1):
-        io.write_pvd(sol, out / f"{cfg.stem}.pvd")
-        files.append(f"{cfg.stem}.pvd")
-        files.extend(f"{cfg.stem}_{i + 1:04d}.vtu" for i in range(len(sol.increments)))
-
-
-def run(path, out, *, solver="auto", progress=None, force_size: bool = False) -> dict:
-    """Load a problem file, solve it with DDM sensitivities and write the results.
-
-    Args:
-        path: the TOML problem file (schema: module docstring).
-        out: output directory (created if needed).
-        solver: linear solver name for :func:`signorini.solve`.
-        progress: reserved for progress reporting (accepted, not used yet).
-        force_size: run even if the estimated memory exceeds what is available.
-
-    Returns:
-        The summary (also written to ``out/summary.json``).
-
-    Raises:
-        InputError: an invalid file (nothing is written).
-        ConvergenceError: the solve failed; the converged increments' results
-            and ``summary.json`` with ``"status": "failed"`` and the reason are
-            written first.
-    """
-
-
-    problem, cfg = load(path)
-    out = prepare_output(out)
-    n_contact = sum(len(np.unique(problem.mesh.edge_set(c.edges))) * c.method.n_multipliers
-                    for c in problem.contact)
-    check_size(2 * problem.mesh.n_nodes + n_contact, force=force_size, what=str(cfg.path))
-    summary = {
-        "file": str(cfg.path), "title": cfg.title, "status": "running",
-        "params": dict(problem.params),
-        "mesh": {"nodes": problem.mesh.n_nodes, "cells": problem.mesh.n_cells},
-        "steps": cfg.steps, "sensitivities": list(cfg.sensitivities),
-        "options": {"rtol": cfg.options.rtol, "atol": cfg.options.atol,
-                    "max_iter": cfg.options.max_iter, "max_cuts": cfg.options.max_cuts,
-                    "predictor": cfg.options.predictor},
-    }
-
-    solver = use_solver(solver)
-    summary["solver"] = solver.name
-    t0 = time.perf_counter()
-    error = None
-    try:
-        sol = solve(problem, steps=cfg.steps, wrt=list(cfg.sensitivities),
-                    options=cfg.options, solver=solver, label="base")
-    except SolverError as e:  # ConvergenceError keeps the converged increments in .partial
-        error, sol = e, getattr(e, "partial", None)
-    summary["time_solve_s"] = time.perf_counter() - t0
-    summary["status"] = "failed" if error is not None else "converged"
-    if error is not None:
-        summary["reason"] = str(error)
-    if sol is not None:
-        summary["mesh"]["dofs"] = int(sol.model.n_dof)
-        summary["increments"] = len(sol.increments)
-        summary["load_factors"] = [float(inc.t) for inc in sol.increments]
-        summary["newton_iterations"] = list(sol.newton_iterations)
-        summary["newton_log"] = [  # every attempted increment, including cut and failed ones
-            {"t": float(s.t), "dt": float(s.dt), "iterations": s.iterations,
-             "converged": bool(s.converged), **({"reason": s.reason} if s.reason else {})}
-            for s in getattr(sol, "log", [])]
-        summary["warnings"] = _jsonable(list(getattr(sol, "warnings", [])))
-    else:
-        summary.update(increments=0, load_factors=[], newton_iterations=[], newton_log=[], warnings=[])
-    summary["contact"], summary["responses"], summary["outputs"] = [], {}, []
-    if sol is not None:
-        try:
-            _write_results(sol, problem, cfg, out, summary)
-        except Exception as e:  # noqa: BLE001  (keep the solver's error; record this one)
-            if error is None:
-                raise
-            summary["output_error"] = f"{type(e).__name__}: {e}"
-    summary["outputs"].insert(0, "summary.json")
-    summary = _jsonable(summary)
-    io.write_json(out / "summary.json", summary)
-    if error is not None:
-        raise error
-    return summary

@@ -1,0 +1,189 @@
+"""Running a problem file: the solve, the responses and their sensitivities, and
+the files (summary.json, contact tables, VTU, a .pvd series)."""
+
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import SolverError
+from ...model.problem import Problem
+from ..._jax import jnp
+from ...algorithms.stepping import solve
+from ...linsolve import check_size
+from ...post import files as io
+from ..runner import prepare_output
+from ..runner import use_solver
+
+
+from .schema import Response, RunConfig, load
+
+__all__ = ["run"]
+
+
+def _jsonable(o):
+    if isinstance(o, dict):
+        return {str(k): _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    if o is None or isinstance(o, (str, int, float, bool)):
+        return o
+    return str(o)
+
+
+def _response_values(sol, problem: Problem, r: Response) -> dict:
+    """Value and DDM sensitivities of one response at the last increment."""
+    names = list(sol.names)
+    if r.type == "max_pressure":
+        c = sol.contact(-1, r.surface)
+        j = int(np.argmax(c["p_N"]))
+        return {"value": float(c["p_N"][j]), "node": int(c["node"][j]),
+                "x_ref": [float(v) for v in c["x_ref"][j]],
+                "sensitivities": {n: float(c[f"dp_N_d{n}"][j]) for n in names}}
+    if r.type == "normal_force":
+
+        m, k = sol.model, r.surface
+
+        def force(w, p, t):
+            f = m.contact_fields(w, p, t, k)
+            return jnp.sum(f["p_N"] * f["area"])
+
+        val, d = sol.response(force, -1, key=("problemfile.normal_force", k))
+        return {"value": float(val), "sensitivities": {n: float(d[n]) for n in names}}
+    nodes = problem.mesh.node_set(r.node_set)
+    if r.type == "displacement":
+        val = float(sol.displacement()[nodes, r.component].mean())
+        sens = {n: float(sol.displacement_sensitivity(n)[nodes, r.component].mean()) for n in names}
+    else:
+        # force of the supports on the body (Solution.reactions)
+        val = float(sol.reactions()[nodes, r.component].sum())
+        sens = {n: float(sol.reaction_sensitivity(n)[nodes, r.component].sum()) for n in names}
+    return {"value": val, "sensitivities": sens}
+
+
+def _contact_csv(sol, k: int, path: Path):
+
+    c = sol.contact(-1, k)
+    cols = {"node": c["node"], "x_ref": c["x_ref"][:, 0], "y_ref": c["x_ref"][:, 1],
+            "x": c["x"][:, 0], "y": c["x"][:, 1], "p_N": c["p_N"], "p_T": c["p_T"], "gap": c["gap"]}
+    for n in sol.names:
+        cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
+    if "status" in c:
+        for n in sol.names:
+            cols[f"dp_T_d{n}"] = c[f"dp_T_d{n}"]
+        cols["status"] = c["status"]
+        cols["slip"] = c["slip"]
+    io.write_csv(path, cols)
+    return c
+
+
+def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: dict) -> None:
+    """Files of the last converged increment (and the series); fills ``summary``."""
+    files = summary["outputs"]
+    if not sol.increments:
+        return
+    surfaces = []
+    for k, s in enumerate(sol.model.surfaces):
+        name = "contact.csv" if k == 0 else f"contact_{k}.csv"
+        if cfg.csv:
+            c = _contact_csv(sol, k, out / name)
+            files.append(name)
+        else:
+            c = sol.contact(-1, k)
+        surfaces.append({"edges": s.contact.edges, "method": type(s.contact.method).__name__,
+                         "nodes": int(len(s.nodes)), "closed_nodes": int(np.sum(c["p_N"] > 0)),
+                         "max_p_N": float(np.max(c["p_N"])) + 0.0 if len(c["p_N"]) else 0.0})
+    summary["contact"] = surfaces
+    summary["responses"] = {r.name: {"type": r.type, **_response_values(sol, problem, r)}
+                            for r in cfg.responses}
+    if cfg.vtu:
+        io.write_vtu(sol, out / f"{cfg.stem}.vtu")
+        files.append(f"{cfg.stem}.vtu")
+    if cfg.pvd and (cfg.steps > 1 or len(sol.increments) > 1):
+        io.write_pvd(sol, out / f"{cfg.stem}.pvd")
+        files.append(f"{cfg.stem}.pvd")
+        files.extend(f"{cfg.stem}_{i + 1:04d}.vtu" for i in range(len(sol.increments)))
+
+
+def run(path, out, *, solver="auto", progress=None, force_size: bool = False) -> dict:
+    """Load a problem file, solve it with DDM sensitivities and write the results.
+
+    Args:
+        path: the TOML problem file (schema: module docstring).
+        out: output directory (created if needed).
+        solver: linear solver name for :func:`signorini.solve`.
+        progress: reserved for progress reporting (accepted, not used yet).
+        force_size: run even if the estimated memory exceeds what is available.
+
+    Returns:
+        The summary (also written to ``out/summary.json``).
+
+    Raises:
+        InputError: an invalid file (nothing is written).
+        ConvergenceError: the solve failed; the converged increments' results
+            and ``summary.json`` with ``"status": "failed"`` and the reason are
+            written first.
+    """
+
+
+    problem, cfg = load(path)
+    out = prepare_output(out)
+    n_contact = sum(len(np.unique(problem.mesh.edge_set(c.edges))) * c.method.n_multipliers
+                    for c in problem.contact)
+    check_size(2 * problem.mesh.n_nodes + n_contact, force=force_size, what=str(cfg.path))
+    summary = {
+        "file": str(cfg.path), "title": cfg.title, "status": "running",
+        "params": dict(problem.params),
+        "mesh": {"nodes": problem.mesh.n_nodes, "cells": problem.mesh.n_cells},
+        "steps": cfg.steps, "sensitivities": list(cfg.sensitivities),
+        "options": {"rtol": cfg.options.rtol, "atol": cfg.options.atol,
+                    "max_iter": cfg.options.max_iter, "max_cuts": cfg.options.max_cuts,
+                    "predictor": cfg.options.predictor},
+    }
+
+    solver = use_solver(solver)
+    summary["solver"] = solver.name
+    t0 = time.perf_counter()
+    error = None
+    try:
+        sol = solve(problem, steps=cfg.steps, wrt=list(cfg.sensitivities),
+                    options=cfg.options, solver=solver, label="base")
+    except SolverError as e:  # ConvergenceError keeps the converged increments in .partial
+        error, sol = e, getattr(e, "partial", None)
+    summary["time_solve_s"] = time.perf_counter() - t0
+    summary["status"] = "failed" if error is not None else "converged"
+    if error is not None:
+        summary["reason"] = str(error)
+    if sol is not None:
+        summary["mesh"]["dofs"] = int(sol.model.n_dof)
+        summary["increments"] = len(sol.increments)
+        summary["load_factors"] = [float(inc.t) for inc in sol.increments]
+        summary["newton_iterations"] = list(sol.newton_iterations)
+        summary["newton_log"] = [  # every attempted increment, including cut and failed ones
+            {"t": float(s.t), "dt": float(s.dt), "iterations": s.iterations,
+             "converged": bool(s.converged), **({"reason": s.reason} if s.reason else {})}
+            for s in getattr(sol, "log", [])]
+        summary["warnings"] = _jsonable(list(getattr(sol, "warnings", [])))
+    else:
+        summary.update(increments=0, load_factors=[], newton_iterations=[], newton_log=[], warnings=[])
+    summary["contact"], summary["responses"], summary["outputs"] = [], {}, []
+    if sol is not None:
+        try:
+            _write_results(sol, problem, cfg, out, summary)
+        except Exception as e:  # noqa: BLE001  (keep the solver's error; record this one)
+            if error is None:
+                raise
+            summary["output_error"] = f"{type(e).__name__}: {e}"
+    summary["outputs"].insert(0, "summary.json")
+    summary = _jsonable(summary)
+    io.write_json(out / "summary.json", summary)
+    if error is not None:
+        raise error
+    return summary
