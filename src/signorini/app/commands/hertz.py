@@ -119,39 +119,13 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     _validity(sol, a_fe, v, pb, zone * analytical(**{k: DEFAULTS[k] for k in ("P", "R", "E", "nu")})["a"],
               checks)
 
-    cols = {"x_ref": x, "x": c["x"][:, 0], "p_N": c["p_N"]}
-    for n in sensitivities:
-        cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
-    io.write_csv(out / "contact.csv", cols)
-    io.write_vtu(sol, out / "hertz.vtu")
-    if steps > 1:
-        io.write_pvd(sol, out / "hertz.pvd")
+    _write_fields(out, sol, sensitivities, steps)
 
     ddm_fd = {}
     if fd_check:
-        inner = x < 0.9 * an["a"]  # p_N is not differentiable at x = a
-        for n in sensitivities:
-            fd = finite_difference(pb, n, lambda s: s.contact()["p_N"][inner], steps=steps,
-                                   options=options, rel_step=fd_step, solver=solver,
-                                   guide=sol if coarse_start else None)
-            ddm_fd[n] = max_rel_diff(c[f"dp_N_d{n}"][inner], fd)
-
-    xa = np.linspace(0, 1.5 * an["a"], 400)
-    plots.curves(out / "pressure.png", [
-        {"x": xa, "y": pressure(xa, v["P"], v["R"], v["E"], v["nu"]), "label": "Hertz (eq. 22)"},
-        {"x": x, "y": c["p_N"], "label": f"FE, {method}", "style": "points"}],
-        xlabel="x [mm]", ylabel="p_N [N/mm²]", title="Frictionless Hertz: contact pressure",
-        xlim=(0, 1.5 * an["a"]))
-    if "R" in sensitivities:
-        xs = np.linspace(0, 0.995 * an["a"], 400)
-        plots.curves(out / "sensitivity.png", [
-            {"x": np.concatenate([xs, [an["a"], 1.5 * an["a"]]]),
-             "y": np.concatenate([pressure_dR(xs, v["P"], v["R"], v["E"], v["nu"]), [0, 0]]),
-             "label": "analytical"},
-            {"x": x, "y": c["dp_N_dR"], "label": "FE, DDM", "style": "points"}],
-            xlabel="x [mm]", ylabel="Dp_N/DR [N/mm³]",
-            title="Sensitivity of the pressure to the cylinder radius", xlim=(0, 1.5 * an["a"]))
-
+        ddm_fd = _ddm_vs_fd(pb, sol, x < 0.9 * an["a"], sensitivities, steps=steps, options=options,
+                            rel_step=fd_step, solver=solver, guide=sol if coarse_start else None)
+    _figures(out, x, c, an, v, method, sensitivities)
     summary = summary_header("converged", sol)
     summary.update({
         "params": v,
@@ -172,6 +146,46 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
+
+
+def _write_fields(out, sol, sensitivities, steps) -> None:
+    """contact.csv (pressure and its sensitivities) and the VTU file(s)."""
+    c = sol.contact()
+    cols = {"x_ref": c["x_ref"][:, 0], "x": c["x"][:, 0], "p_N": c["p_N"]}
+    for n in sensitivities:
+        cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
+    io.write_csv(out / "contact.csv", cols)
+    io.write_vtu(sol, out / "hertz.vtu")
+    if steps > 1:
+        io.write_pvd(sol, out / "hertz.pvd")
+
+
+def _ddm_vs_fd(pb, sol, inner, sensitivities, **fd_kwargs) -> dict:
+    """Max relative difference of the DDM pressure sensitivities from central
+    differences, over the nodes ``inner`` (p_N is not differentiable at x = a)."""
+    c = sol.contact()
+    return {n: max_rel_diff(c[f"dp_N_d{n}"][inner],
+                            finite_difference(pb, n, lambda s: s.contact()["p_N"][inner], **fd_kwargs))
+            for n in sensitivities}
+
+
+def _figures(out, x, c, an, v, method, sensitivities) -> None:
+    """pressure.png (against Hertz) and sensitivity.png (DDM against the analytical dp/dR)."""
+    xa = np.linspace(0, 1.5 * an["a"], 400)
+    plots.curves(out / "pressure.png", [
+        {"x": xa, "y": pressure(xa, v["P"], v["R"], v["E"], v["nu"]), "label": "Hertz (eq. 22)"},
+        {"x": x, "y": c["p_N"], "label": f"FE, {method}", "style": "points"}],
+        xlabel="x [mm]", ylabel="p_N [N/mm²]", title="Frictionless Hertz: contact pressure",
+        xlim=(0, 1.5 * an["a"]))
+    if "R" in sensitivities:
+        xs = np.linspace(0, 0.995 * an["a"], 400)
+        plots.curves(out / "sensitivity.png", [
+            {"x": np.concatenate([xs, [an["a"], 1.5 * an["a"]]]),
+             "y": np.concatenate([pressure_dR(xs, v["P"], v["R"], v["E"], v["nu"]), [0, 0]]),
+             "label": "analytical"},
+            {"x": x, "y": c["dp_N_dR"], "label": "FE, DDM", "style": "points"}],
+            xlabel="x [mm]", ylabel="Dp_N/DR [N/mm³]",
+            title="Sensitivity of the pressure to the cylinder radius", xlim=(0, 1.5 * an["a"]))
 
 
 def _validity(sol, a_fe: float, v: dict, pb, zone_width: float, checks) -> None:
