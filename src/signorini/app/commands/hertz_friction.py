@@ -120,45 +120,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
                              "contact work W = sum A p_N (g0 - g) at P (hertz.contact_work)", solver,
                              {n: float(d) for n, d in dW.items()})
 
-    levels = []
-    for i, k in enumerate(load_increments(sol), start=1):
-        P = v["P"] * sol.increments[k].t
-        an = hertz.analytical(P, v["R"], v["E"], v["nu"])
-        c = sol.contact(k)
-        z = stick_zone(c, v["mu"])
-        cols = {"x_ref": c["x_ref"][:, 0], "x": c["x"][:, 0], "p_N": c["p_N"], "p_T": c["p_T"] + 0.0}
-        for n in sensitivities:
-            cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
-            cols[f"dp_T_d{n}"] = c[f"dp_T_d{n}"] + 0.0
-        cols["status"] = c["status"]
-        io.write_csv(out / f"contact_P{i}.csv", cols)
-        io.write_vtu(sol, out / f"hertz_friction_P{i}.vtu", k)
-        levels.append({"P": P, "increment": k, "a": z["a"], "c": z["c"], "c_over_a": z["c_over_a"],
-                       "a_bracket": z["a_bracket"], "c_bracket": z["c_bracket"],
-                       "c_over_a_bracket": z["c_over_a_bracket"],
-                       "a_nodes": z["a_nodes"], "c_nodes": z["c_nodes"],
-                       "a_hertz": an["a"], "p0_hertz": an["p0"], "p0": float(c["p_N"].max()),
-                       "n_stick": int((c["status"] == "stick").sum()),
-                       "n_slip": int((c["status"] == "slip").sum()), "contact": c})
+    levels = _levels(out, sol, v, sensitivities)
     io.write_pvd(sol, out / "hertz_friction.pvd")
     _figures(out, levels, v, plots)
 
     ddm_fd = {}
     if fd_check:
-        k3 = levels[-1]["increment"]
-        inner = levels[-1]["contact"]["x_ref"][:, 0] < 0.9 * levels[-1]["a_hertz"]
-        for n in ("R", "mu"):
-            if n not in sensitivities:
-                continue
-
-            def q(s, k3=k3):
-                c = s.contact(k3)
-                return np.concatenate([c["p_N"][inner], c["p_T"][inner]])
-
-            fd = finite_difference(pb, n, q, steps=steps, options=options, rel_step=fd_step,
-                                   solver=solver, guide=sol if coarse_start else None)
-            c3 = levels[-1]["contact"]
-            ddm_fd[n] = max_rel_diff(np.concatenate([c3[f"dp_N_d{n}"][inner], c3[f"dp_T_d{n}"][inner]]), fd)
+        ddm_fd = _ddm_vs_fd(pb, levels[-1], [n for n in ("R", "mu") if n in sensitivities], steps=steps,
+                            options=options, rel_step=fd_step, solver=solver,
+                            guide=sol if coarse_start else None)
 
     summary = summary_header("converged", sol)
     summary.update({
@@ -180,6 +150,48 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
+
+
+def _levels(out, sol, v, sensitivities) -> list[dict]:
+    """At P1, P2, P3: contact_P<i>.csv, the VTU file, and the zone figures (a, c, c/a
+    with brackets, Hertz's a and p0, stick and slip counts; the contact arrays kept)."""
+    levels = []
+    for i, k in enumerate(load_increments(sol), start=1):
+        P = v["P"] * sol.increments[k].t
+        an = hertz.analytical(P, v["R"], v["E"], v["nu"])
+        c = sol.contact(k)
+        z = stick_zone(c, v["mu"])
+        cols = {"x_ref": c["x_ref"][:, 0], "x": c["x"][:, 0], "p_N": c["p_N"], "p_T": c["p_T"] + 0.0}
+        for n in sensitivities:
+            cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
+            cols[f"dp_T_d{n}"] = c[f"dp_T_d{n}"] + 0.0
+        cols["status"] = c["status"]
+        io.write_csv(out / f"contact_P{i}.csv", cols)
+        io.write_vtu(sol, out / f"hertz_friction_P{i}.vtu", k)
+        levels.append({"P": P, "increment": k, "a": z["a"], "c": z["c"], "c_over_a": z["c_over_a"],
+                       "a_bracket": z["a_bracket"], "c_bracket": z["c_bracket"],
+                       "c_over_a_bracket": z["c_over_a_bracket"],
+                       "a_nodes": z["a_nodes"], "c_nodes": z["c_nodes"],
+                       "a_hertz": an["a"], "p0_hertz": an["p0"], "p0": float(c["p_N"].max()),
+                       "n_stick": int((c["status"] == "stick").sum()),
+                       "n_slip": int((c["status"] == "slip").sum()), "contact": c})
+    return levels
+
+
+def _ddm_vs_fd(pb, level: dict, names, **fd_kwargs) -> dict:
+    """Max relative difference of the DDM (p_N, p_T) sensitivities at P3 from central
+    differences of the whole path, inside 0.9 a (the tractions are not
+    differentiable at the edge of the zone)."""
+    k3, c3 = level["increment"], level["contact"]
+    inner = c3["x_ref"][:, 0] < 0.9 * level["a_hertz"]
+
+    def q(s):
+        c = s.contact(k3)
+        return np.concatenate([c["p_N"][inner], c["p_T"][inner]])
+
+    return {n: max_rel_diff(np.concatenate([c3[f"dp_N_d{n}"][inner], c3[f"dp_T_d{n}"][inner]]),
+                            finite_difference(pb, n, q, **fd_kwargs))
+            for n in names}
 
 
 def _figures(out, levels, v, plots):
