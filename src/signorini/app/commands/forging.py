@@ -127,30 +127,11 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     x = sol.current()
     vol0, vol1 = body_volume(model, X), body_volume(model, x)
 
-    fd, rel = {}, {}
-    if fd_check:
-        q = lambda s: float(s.response(F_fn, with_sensitivities=False, key=("forging-objective",))[0])
-        for n in names:
-            fd[n] = float(finite_difference(pb, n, q, steps=steps, options=opts, solver=solver,
-                                            rel_step=fd_step))
-            rel[n] = abs(dF[n] - fd[n]) / abs(dF[n]) if dF[n] else abs(fd[n])
-    rows = {"parameter": names, "DDM": [dF[n] for n in names]}
-    if fd_check:
-        rows["FD"] = [fd[n] for n in names]
-        rows["rel_diff"] = [rel[n] for n in names]
-    io.write_csv(out / "table1.csv", rows)
+    fd, rel = _table1(out, pb, F_fn, names, dF, fd_check, steps=steps, options=opts, solver=solver,
+                      rel_step=fd_step)
     io.write_pvd(sol, out / "forging.pvd")
 
-    alpha = np.asarray(sol.increments[-1].state[2])[..., 9].mean(axis=1)
-    plots.meshes(out / "shape.png", [
-        {"x": X, "cells": model.conn, "title": "initial (preform)"},
-        {"x": x, "cells": model.conn, "title": f"after {v['stroke'] / H0:.0%} stroke",
-         "color": alpha, "color_label": "equivalent plastic strain"}],
-        title=f"Forging, mu = {v['mu']:g}, F = {float(F):.4g}")
-    plots.curves(out / "force.png", [
-        {"x": [inc.t * v["stroke"] for inc in sol.increments], "y": force, "label": "die force"}],
-        xlabel="die stroke [h0]", ylabel="axial force (full 2 pi) [N]",
-        title="Forging: die force against stroke")
+    _figures(out, sol, X, x, v, F, force)
 
     summary = summary_header("converged", sol)
     summary.update({
@@ -175,3 +156,35 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
+
+
+def _table1(out, pb, F_fn, names, dF, fd_check, **fd_kwargs):
+    """table1.csv: the DDM sensitivities of F and, with ``fd_check``, central
+    differences of the whole process and their relative differences."""
+    fd, rel = {}, {}
+    if fd_check:
+        q = lambda s: float(s.response(F_fn, with_sensitivities=False, key=("forging-objective",))[0])  # noqa: E731
+        for n in names:
+            fd[n] = float(finite_difference(pb, n, q, **fd_kwargs))
+            rel[n] = abs(dF[n] - fd[n]) / abs(dF[n]) if dF[n] else abs(fd[n])
+    rows = {"parameter": names, "DDM": [dF[n] for n in names]}
+    if fd_check:
+        rows["FD"] = [fd[n] for n in names]
+        rows["rel_diff"] = [rel[n] for n in names]
+    io.write_csv(out / "table1.csv", rows)
+    return fd, rel
+
+
+def _figures(out, sol, X, x, v, F, force) -> None:
+    """shape.png (preform and final shape with the plastic strain) and force.png."""
+    model = sol.model
+    alpha = np.asarray(sol.increments[-1].state[2])[..., 9].mean(axis=1)
+    plots.meshes(out / "shape.png", [
+        {"x": X, "cells": model.conn, "title": "initial (preform)"},
+        {"x": x, "cells": model.conn, "title": f"after {v['stroke'] / H0:.0%} stroke",
+         "color": alpha, "color_label": "equivalent plastic strain"}],
+        title=f"Forging, mu = {v['mu']:g}, F = {float(F):.4g}")
+    plots.curves(out / "force.png", [
+        {"x": [inc.t * v["stroke"] for inc in sol.increments], "y": force, "label": "die force"}],
+        xlabel="die stroke [h0]", ylabel="axial force (full 2 pi) [N]",
+        title="Forging: die force against stroke")
