@@ -50,13 +50,16 @@ def _path_figures(sol) -> dict:
 class ObjectiveEvaluation:
     """The evaluation machinery of :class:`~signorini.design.optimize.Objective` (a part of it)."""
 
-    # -------------------------------------------------------------- internals
-    def _point(self, x) -> np.ndarray:
+    def point(self, x) -> np.ndarray:
+        """x as a design point: a float copy of the right length (InputError otherwise),
+        without -0.0 (the bytes of x are the key of the evaluation cache)."""
         x = np.array(x, dtype=float).ravel()  # a copy
         if x.size != len(self.names):
             raise InputError(f"the design point has {x.size} value(s), expected {len(self.names)} "
                              f"({self.names})")
         return x + 0.0  # no -0.0: the cache key is the bytes of x
+
+    # -------------------------------------------------------------- internals
 
     def _fn(self, model):
         entry = self._fns.get(id(model))

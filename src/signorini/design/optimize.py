@@ -196,7 +196,7 @@ class Objective(ObjectiveEvaluation):
     def jac(self, x) -> np.ndarray:
         """DF/Dx: the gradient of the evaluation at x (DDM or adjoint; ``"fd"``: central
         differences)."""
-        x = self._point(x)
+        x = self.point(x)
         ev = self.evaluate(x)
         if self.gradient_mode != "fd" or not ev.ok:
             return ev.grad.copy() if ev.grad is not None else np.zeros(len(self.names))
@@ -213,11 +213,11 @@ class Objective(ObjectiveEvaluation):
 
     def params(self, x) -> dict:
         """The parameter dict of the design point x."""
-        return {**self.problem.params, **dict(zip(self.names, (float(v) for v in self._point(x))))}
+        return {**self.problem.params, **dict(zip(self.names, (float(v) for v in self.point(x))))}
 
     def evaluate(self, x) -> Evaluation:
         """The (cached) evaluation at x: value, and in ``"ddm"`` mode the gradient."""
-        x = self._point(x)
+        x = self.point(x)
         k = x.tobytes()
         ev = self._cache.get(k)
         if ev is None:
@@ -228,7 +228,7 @@ class Objective(ObjectiveEvaluation):
     def lookup(self, x, rtol: float = 1e-13) -> Evaluation | None:
         """The evaluation at x (bit-identical, else the nearest one within ``rtol``
         relative distance); None if x was not evaluated."""
-        x = self._point(x)
+        x = self.point(x)
         ev = self._cache.get(x.tobytes())
         if ev is not None:
             return ev
@@ -266,7 +266,7 @@ class Objective(ObjectiveEvaluation):
             if b is None:
                 raise InputError("no successful evaluation yet")
             x = b.x
-        x = self._point(x)
+        x = self.point(x)
         sol = self._solutions.get(x.tobytes())
         if sol is None:
             self._solve(x, with_grad=self.gradient_mode != "fd", kind="final", keep=True)
@@ -325,7 +325,42 @@ def minimize(objective: Objective, x0, method: str = "BFGS", *, bounds=None, con
     """
     import scipy.optimize as so  # lazy: heavy, and only a minimisation needs it
 
+    bounds = _checked_bounds(objective, method, bounds, constraints)
+    t_start = time.perf_counter()
+    n0 = len(objective.records)
+    x0 = _start(objective, x0, bounds)
+    history = _IterationLog(objective, bounds, n0, t_start, callback)
+    history.entry(x0)
+    opts = {"maxiter": int(maxiter), ("ftol" if method == "SLSQP" else "gtol"): float(gtol)}
+    opts.update(options or {})
+    kw = {"bounds": bounds} if bounds is not None else {}
+    if method == "SLSQP" and constraints:
+        kw["constraints"] = constraints
+    res = so.minimize(objective.fun, x0, jac=objective.jac, method=method, callback=history,
+                      options=opts, **kw)
+    final = objective.lookup(res.x)
+    if final is None or not final.ok:  # never hand back a failed point
+        good = [r for r in objective.records[n0:] if r.ok and r.kind != "fd"]
+        best = min(good, key=lambda r: r.F)
+        res.x, res.fun = best.x.copy(), best.F
+        res.message = f"{res.message} (the returned point failed; the best good point is returned)"
+        res.success = False
+        final = best
+    res.jac = objective.jac(final.x)
+    recs = objective.records[n0:]
+    res.iterations_log = history.rows
+    res.evaluations = recs
+    res.n_solves = len(recs)
+    res.n_failed = sum(not r.ok for r in recs)
+    res.time = time.perf_counter() - t_start
+    res.names = list(objective.names)
+    res.method = method
+    return res
 
+
+def _checked_bounds(objective, method, bounds, constraints):
+    """The bounds as (low or None, high or None) pairs, after checking that the
+    method takes them (and the constraints)."""
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
     if bounds is not None and method == "BFGS":
@@ -338,9 +373,12 @@ def minimize(objective: Objective, x0, method: str = "BFGS", *, bounds=None, con
                    None if hi is None or not np.isfinite(hi) else float(hi)) for lo, hi in bounds]
         if len(bounds) != len(objective.names):
             raise InputError(f"bounds has {len(bounds)} entries, expected {len(objective.names)}")
-    t_start = time.perf_counter()
-    n0 = len(objective.records)
-    x0 = objective._point(x0)
+    return bounds
+
+
+def _start(objective, x0, bounds) -> np.ndarray:
+    """The start design (clipped into the bounds), which must solve: else its error."""
+    x0 = objective.point(x0)
     if bounds is not None:
         lo = np.array([-np.inf if b[0] is None else b[0] for b in bounds])
         hi = np.array([np.inf if b[1] is None else b[1] for b in bounds])
@@ -357,60 +395,34 @@ def minimize(objective: Objective, x0, method: str = "BFGS", *, bounds=None, con
                                    f"{where} failed: {err}", partial=err.partial) from err
         raise InputError(f"the optimisation cannot start: the start design {where} is invalid: "
                          f"{err}") from err
+    return x0
 
-    log_rows: list[dict] = []
 
-    def entry(x) -> dict:
+class _IterationLog:
+    """SciPy's per-iteration callback: one row per iteration (0 = the start)."""
+
+    def __init__(self, objective, bounds, n0: int, t_start: float, callback):
+        self.objective, self.bounds, self.n0, self.t_start = objective, bounds, n0, t_start
+        self.callback = callback
+        self.rows: list[dict] = []
+
+    def entry(self, x) -> dict:
+        objective = self.objective
         ev = objective.lookup(x)
         if ev is None or (objective.gradient_mode == "fd" and ev.kind == "fd"):
             ev = objective.evaluate(x)
-        g = objective.jac(ev.x)
-        gp = _projected(g, ev.x, bounds)
-        recs = objective.records[n0:]
-        row = {"iteration": len(log_rows), "F": ev.F, "grad_norm": float(np.linalg.norm(gp)),
+        gp = _projected(objective.jac(ev.x), ev.x, self.bounds)
+        recs = objective.records[self.n0:]
+        row = {"iteration": len(self.rows), "F": ev.F, "grad_norm": float(np.linalg.norm(gp)),
                "grad_inf": float(np.max(np.abs(gp))), "x": ev.x.tolist(),
                "evaluations": len(recs), "solves": len(recs),
-               "failed": sum(not r.ok for r in recs), "time": time.perf_counter() - t_start}
-        log_rows.append(row)
+               "failed": sum(not r.ok for r in recs), "time": time.perf_counter() - self.t_start}
+        self.rows.append(row)
         return row
 
-    entry(x0)
-
-    def cb(xk, *args):
-        row = entry(xk)
-        log.info("%s iteration %d: F = %.10g, |grad| = %.4g, %d solves", objective.label,
+    def __call__(self, xk, *args):
+        row = self.entry(xk)
+        log.info("%s iteration %d: F = %.10g, |grad| = %.4g, %d solves", self.objective.label,
                  row["iteration"], row["F"], row["grad_norm"], row["solves"])
-        if callback is not None:
-            callback(row)
-
-    opts = {"maxiter": int(maxiter)}
-    if method == "BFGS":
-        opts["gtol"] = float(gtol)
-    elif method == "L-BFGS-B":
-        opts["gtol"] = float(gtol)
-    else:
-        opts["ftol"] = float(gtol)
-    opts.update(options or {})
-    kw = {"bounds": bounds} if bounds is not None else {}
-    if method == "SLSQP" and constraints:
-        kw["constraints"] = constraints
-    res = so.minimize(objective.fun, x0, jac=objective.jac, method=method, callback=cb,
-                      options=opts, **kw)
-    final = objective.lookup(res.x)
-    if final is None or not final.ok:  # never hand back a failed point
-        good = [r for r in objective.records[n0:] if r.ok and r.kind != "fd"]
-        best = min(good, key=lambda r: r.F)
-        res.x, res.fun = best.x.copy(), best.F
-        res.message = f"{res.message} (the returned point failed; the best good point is returned)"
-        res.success = False
-        final = best
-    res.jac = objective.jac(final.x)
-    recs = objective.records[n0:]
-    res.iterations_log = log_rows
-    res.evaluations = recs
-    res.n_solves = len(recs)
-    res.n_failed = sum(not r.ok for r in recs)
-    res.time = time.perf_counter() - t_start
-    res.names = list(objective.names)
-    res.method = method
-    return res
+        if self.callback is not None:
+            self.callback(row)
