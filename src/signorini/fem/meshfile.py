@@ -93,6 +93,31 @@ def read_mesh(path) -> "Mesh":
 
     path = Path(path)
     m = _meshio_read(path)
+    nodes, cells, used, new = _quad_mesh(path, m)
+    names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
+    phys = m.cell_data.get("gmsh:physical")
+    edge_sets, node_sets = {}, {}
+    if phys is not None:
+        try:
+            probe = Mesh(nodes, cells)
+        except InputError as e:
+            raise type(e)(f"{path}: {e}") from None
+        boundary = {tuple(sorted(e)): tuple(e) for e in probe.boundary_edges()}
+        for block, tags in zip(m.cells, phys):
+            for tag in np.unique(tags):
+                name = names.get(int(tag), f"physical_{int(tag)}")
+                _add_set(path, name, block.type, block.data[tags == tag], used, new, nodes, boundary,
+                         edge_sets, node_sets)
+    node_sets.setdefault("all", np.arange(len(nodes)))
+    try:
+        return Mesh(nodes, cells, node_sets, edge_sets)
+    except InputError as e:
+        raise type(e)(f"{path}: {e}") from None
+
+
+def _quad_mesh(path, m):
+    """(nodes (n, 2), cells counter-clockwise, used (the file's nodes a quad uses),
+    new (file node -> mesh node, -1 for dropped ones)) of a meshio mesh."""
     quads = [c.data for c in m.cells if c.type == "quad"]
     if not quads:
         kinds = sorted({c.type for c in m.cells})
@@ -119,48 +144,35 @@ def read_mesh(path) -> "Mesh":
     det = signed_jacobians(nodes, cells)
     flip = det.sum(axis=1) < 0
     cells[flip] = cells[flip][:, ::-1]
-    names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
-    phys = m.cell_data.get("gmsh:physical")
-    edge_sets, node_sets = {}, {}
-    if phys is not None:
-        try:
-            probe = Mesh(nodes, cells)
-        except InputError as e:
-            raise type(e)(f"{path}: {e}") from None
-        boundary = {tuple(sorted(e)): tuple(e) for e in probe.boundary_edges()}
-        for block, tags in zip(m.cells, phys):
-            for tag in np.unique(tags):
-                name = names.get(int(tag), f"physical_{int(tag)}")
-                data = block.data[tags == tag]
-                if block.type == "line" and (~used[data]).any():
-                    raise InputError(f"{path}: edge set {name!r} has nodes that belong to no "
-                                     "quadrilateral; put the group on the meshed body's boundary")
-                if block.type == "vertex" and (~used[data]).any():
-                    log.warning("%s: point set %r: %d node(s) belong to no quadrilateral (e.g. an "
-                                "arc centre) and are left out of the set", path, name,
-                                int((~used[data]).sum()))
-                    data = data[used[data]]
-                    if not data.size:
-                        continue
-                data = new[data]
-                if block.type == "line":
-                    edges = []
-                    for a, b in data:
-                        key = (min(a, b), max(a, b))
-                        if key not in boundary:
-                            xa, xb = (nodes[n].round(6).tolist() for n in (a, b))
-                            raise InputError(f"{path}: edge set {name!r} has the edge {xa}-{xb} that "
-                                             "is not on the boundary of the quad mesh; loads and "
-                                             "contact need boundary edges")
-                        edges.append(boundary[key])
-                    # a group may span several blocks (one per gmsh entity): merge them
-                    edge_sets[name] = np.concatenate(
-                        [edge_sets.get(name, np.empty((0, 2), np.int64)), np.asarray(edges, np.int64)])
-                    node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
-                elif block.type == "vertex":
-                    node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
-    node_sets.setdefault("all", np.arange(len(nodes)))
-    try:
-        return Mesh(nodes, cells, node_sets, edge_sets)
-    except InputError as e:
-        raise type(e)(f"{path}: {e}") from None
+    return nodes, cells, used, new
+
+
+def _add_set(path, name, kind, data, used, new, nodes, boundary, edge_sets, node_sets) -> None:
+    """Add one physical group's block (line: an edge set and its node set; vertex: a
+    node set) to the sets, checking that lines lie on the boundary."""
+    if kind == "line" and (~used[data]).any():
+        raise InputError(f"{path}: edge set {name!r} has nodes that belong to no "
+                         "quadrilateral; put the group on the meshed body's boundary")
+    if kind == "vertex" and (~used[data]).any():
+        log.warning("%s: point set %r: %d node(s) belong to no quadrilateral (e.g. an "
+                    "arc centre) and are left out of the set", path, name, int((~used[data]).sum()))
+        data = data[used[data]]
+        if not data.size:
+            return
+    data = new[data]
+    if kind == "line":
+        edges = []
+        for a, b in data:
+            key = (min(a, b), max(a, b))
+            if key not in boundary:
+                xa, xb = (nodes[n].round(6).tolist() for n in (a, b))
+                raise InputError(f"{path}: edge set {name!r} has the edge {xa}-{xb} that "
+                                 "is not on the boundary of the quad mesh; loads and "
+                                 "contact need boundary edges")
+            edges.append(boundary[key])
+        # a group may span several blocks (one per gmsh entity): merge them
+        edge_sets[name] = np.concatenate(
+            [edge_sets.get(name, np.empty((0, 2), np.int64)), np.asarray(edges, np.int64)])
+        node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
+    elif kind == "vertex":
+        node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
