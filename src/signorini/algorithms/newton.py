@@ -159,22 +159,9 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
     fac = None
     for k in range(options.max_iter + 1):
         t0 = time.perf_counter()
-        R, blocks = model.local_tangents(w, params, t, state_n)
+        R, blocks = _evaluate_with_backtracking(model, w, params, t, state_n, dw, weights, norm_prev,
+                                                options, k)
         Rf = R[free]
-        # A Newton correction whose iterate inverts an element (non-finite residual) or,
-        # with options.line_search, does not decrease the residual norm is halved (up to
-        # BACKTRACK times) instead of cutting the load step: the converged point and the
-        # load path stay the same, which keeps finite differences consistent with the DDM.
-        halvings = 0
-        while dw is not None and halvings < BACKTRACK and _reject(Rf, weights[free], norm_prev,
-                                                                  0.5**halvings, options):
-            dw *= 0.5
-            w[free] -= dw
-            halvings += 1
-            R, blocks = model.local_tangents(w, params, t, state_n)
-            Rf = R[free]
-        if halvings:
-            log.debug("  t=%.6g it %d: Newton correction halved %d times", t, k, halvings)
         steplog.time_assembly += time.perf_counter() - t0
         if not np.all(np.isfinite(Rf)):
             raise StepFailure(
@@ -198,23 +185,50 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
             raise StepFailure(f"no convergence in {options.max_iter} iterations")
         if norm > options.divergence * ref:
             raise StepFailure("residual diverging")
-        t0 = time.perf_counter()
-        K = pattern.assemble(blocks)
-        steplog.time_assembly += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        try:
-            fac = solver.factorize(K, blocks)
-        except SingularTangentError as e:
-            raise StepFailure(str(e), fatal=(k == 0)) from None
-        steplog.time_factorization += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        try:
-            dw = fac.solve(-Rf)
-        except SingularTangentError as e:
-            raise StepFailure(str(e), fatal=(k == 0)) from None
-        lin = fac.relative_residual  # linsolve.Factor: every solver's factors are one
-        steplog.time_solve += time.perf_counter() - t0
-        if lin > options.singular_check:
-            raise StepFailure(f"singular tangent (linear residual {lin:.1e})", fatal=(k == 0))
+        fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=(k == 0))
         w[free] += dw
     raise AssertionError("unreachable")
+
+
+def _evaluate_with_backtracking(model, w, params, t, state_n, dw, weights, norm_prev, options, k):
+    """(R, blocks) at w. A Newton correction whose iterate inverts an element
+    (non-finite residual) or, with options.line_search, does not decrease the residual
+    norm is halved (up to BACKTRACK times, w changed in place) instead of cutting the
+    load step: the converged point and the load path stay the same, which keeps finite
+    differences consistent with the DDM."""
+    free = model.free
+    R, blocks = model.local_tangents(w, params, t, state_n)
+    halvings = 0
+    while dw is not None and halvings < BACKTRACK and _reject(R[free], weights[free], norm_prev,
+                                                              0.5**halvings, options):
+        dw *= 0.5
+        w[free] -= dw
+        halvings += 1
+        R, blocks = model.local_tangents(w, params, t, state_n)
+    if halvings:
+        log.debug("  t=%.6g it %d: Newton correction halved %d times", t, k, halvings)
+    return R, blocks
+
+
+def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool):
+    """(factor, dw): the tangent assembled and factorised, K dw = -R solved and checked;
+    a singular tangent fails the step (fatally at the first iteration)."""
+    t0 = time.perf_counter()
+    K = pattern.assemble(blocks)
+    steplog.time_assembly += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    try:
+        fac = solver.factorize(K, blocks)
+    except SingularTangentError as e:
+        raise StepFailure(str(e), fatal=first) from None
+    steplog.time_factorization += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    try:
+        dw = fac.solve(-Rf)
+    except SingularTangentError as e:
+        raise StepFailure(str(e), fatal=first) from None
+    lin = fac.relative_residual  # linsolve.Factor: every solver's factors are one
+    steplog.time_solve += time.perf_counter() - t0
+    if lin > options.singular_check:
+        raise StepFailure(f"singular tangent (linear residual {lin:.1e})", fatal=first)
+    return fac, dw
