@@ -188,6 +188,13 @@ def optimize_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method:
         return summary
 
     sol = obj.solution(res.x)  # kept from the evaluation (no new solve in DDM mode)
+    summary.update(_optimum(d, sol, res, obj, mu, t0))
+    io.write_json(d / "summary.json", summary)
+    return summary
+
+
+def _optimum(d: Path, sol, res, obj, mu: float, t0: float) -> dict:
+    """The optimum's files (forging.pvd, shape.png, convergence.png) and its summary entries."""
     pb = sol.model.problem
     lat = forging.lateral_nodes(pb)
     X, x = sol.reference(), sol.current()
@@ -208,7 +215,7 @@ def optimize_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method:
     if not res.success:
         warns.append(f"the optimiser stopped with: {res.message}")
     recs = res.evaluations
-    summary.update({
+    return {
         "status": "converged" if res.success else "stopped",
         "message": str(res.message),
         "phi_opt": dict(zip(forging.SHAPE, map(float, res.x))),
@@ -230,9 +237,7 @@ def optimize_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method:
         "iterations_log": [{k: v for k, v in row.items()} for row in rows],
         "time_wall_s": time.perf_counter() - t0,
         "warnings": warns,
-    })
-    io.write_json(d / "summary.json", summary)
-    return summary
+    }
 
 
 def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
@@ -304,7 +309,7 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
 
 # --------------------------------------------------------------------------- forging optimisation
 
-def _optimise_one(out: str, mu: float, kwargs: dict) -> dict:
+def _optimize_one(out: str, mu: float, kwargs: dict) -> dict:
     """One task: :func:`optimize_mu` (never raises)."""
     single_threaded_env()
 
@@ -332,14 +337,14 @@ def optimize_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int
     """
 
     def mapper(out_, mus_, kwargs):
-        return map_tasks(_optimise_one, [(str(out_), mu, kwargs) for mu in mus_],
+        return map_tasks(_optimize_one, [(str(out_), mu, kwargs) for mu in mus_],
                          scheduler=scheduler, n_workers=n_workers, sequential=sequential,
                          client=client)
 
     where = "sequential" if sequential else ("client" if client is not None else
                                              (scheduler or f"local cluster, "
                                               f"{n_workers or os.cpu_count()} workers"))
-    return run(out, mus, mesh=mesh, steps=steps, method=method, gtol=gtol,
-                           maxiter=maxiter, gradient=gradient, resume=resume, solver=solver,
-                           rtol=rtol, phi_min=PHI_MIN if phi_min is None else phi_min,
-                           mapper=mapper, extra_summary={"parallel": where})
+    return run(out, mus, mesh=mesh, steps=steps, method=method, gtol=gtol, maxiter=maxiter,
+               gradient=gradient, resume=resume, solver=solver, rtol=rtol,
+               phi_min=PHI_MIN if phi_min is None else phi_min, mapper=mapper,
+               extra_summary={"parallel": where})
