@@ -48,9 +48,9 @@ def main():
                      "dlam_dR_error": np.abs(al.multiplier_sensitivity("R")[:, 0] - dlam_ref).max()
                      / np.abs(dlam_ref).max(), "dlam_dR_error_5_outer": float("nan")})
         pu = dataclasses.replace(pb, contact=(sg.Contact(c.obstacle, c.edges, UzawaPenalty("eps")),))
-        solve_uzawa(pu, sensitivities=["R"], options=OPT, tol=1e-9)  # compile
+        solve_uzawa(pu, wrt=["R"], options=OPT, tol=1e-9)  # compile
         t0 = time.perf_counter()
-        uz = solve_uzawa(pu, sensitivities=["R"], options=OPT, tol=1e-9)  # above the inner noise
+        uz = solve_uzawa(pu, wrt=["R"], options=OPT, tol=1e-9)  # above the inner noise
         t = time.perf_counter() - t0
         errs = [np.abs(h - dlam_ref).max() / np.abs(dlam_ref).max() for h in uz.sens_history["R"]]
         rows.append({"method": "Uzawa (nested)", "eps/(E/h)": f, "outer": uz.outer_iterations[0],

@@ -19,7 +19,7 @@ def pair():
     c = pb.contact[0]
     pu = dataclasses.replace(pb, contact=(sg.Contact(c.obstacle, c.edges, UzawaPenalty("eps")),))
     al = sg.solve(pb, sensitivities=["R", "E"], options=TIGHT)
-    uz = solve_uzawa(pu, sensitivities=["R", "E"], options=TIGHT, tol=1e-10)  # above the inner noise
+    uz = solve_uzawa(pu, wrt=["R", "E"], options=TIGHT, tol=1e-10)  # above the inner noise
     return pb, pu, al, uz
 
 
@@ -63,5 +63,5 @@ def test_non_differentiable_expression_is_a_convergence_error_with_the_partial_r
     mat = dataclasses.replace(pu.material, E=lambda p: 100.0 + jnp.sqrt(p["k"]))
     bad = dataclasses.replace(pu, material=mat, params={**pu.params, "k": 0.0})
     with pytest.raises(sg.ConvergenceError, match="sensitivities of 'k' are not finite") as e:
-        solve_uzawa(bad, sensitivities=["k"], tol=1e-8)
+        solve_uzawa(bad, wrt=["k"], tol=1e-8)
     assert e.value.partial is not None

@@ -23,6 +23,7 @@ import numpy as np
 
 from .._jax import jax, jnp
 from ..contact.uzawa import UzawaPenalty
+from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError
 from ..linsolve import TangentSolver, get_solver
 from .newton import NewtonOptions, StepFailure, StepLog, newton
@@ -70,98 +71,126 @@ def _check(model):
         raise InputError("solve_uzawa needs exactly one contact surface with method UzawaPenalty()")
 
 
-def solve_uzawa(problem, *, steps: int = 1, sensitivities: Sequence[str] = (),
+def solve_uzawa(problem, *, steps: int = 1, wrt: Sequence[str] = (),
                 options: NewtonOptions = NewtonOptions(), solver="auto", tol: float = 1e-10,
-                max_outer: int = 500) -> UzawaSolution:
+                max_outer: int = 500, **deprecated) -> UzawaSolution:
     """Uzawa algorithm: Newton on U with frozen multipliers, then lam <- min(lam + eps g, 0).
 
     Args:
         problem: a problem whose contact surface uses :class:`UzawaPenalty`.
+        wrt: the parameters to differentiate with respect to (Uzawa's iterative
+            sensitivity: one back-substitution per parameter and outer iteration).
         tol: outer loop stops when max |lam^{k+1} - lam^k| <= tol * max |lam^{k+1}|.
         max_outer: outer iterations per increment before giving up.
 
-    The other arguments are those of :func:`signorini.solve`.
+    The other arguments are those of :func:`signorini.solve`; ``sensitivities=``
+    is the 0.1 name of ``wrt=`` (a DeprecationWarning).
     """
+    old = pop_old(deprecated, "solve_uzawa", {"sensitivities": "wrt=[...]"})
+    wrt = old.get("sensitivities", wrt)
     t_start = time.perf_counter()
     model = model_for(problem)
     _check(model)
-    names = list(sensitivities)
-    check_names(names, problem.params, "sensitivities")
+    names = list(wrt)
+    check_names(names, problem.params, "wrt")
     params = as_jax(problem.params)
     model.check(problem.params)
-    lin = TangentSolver(get_solver(solver), symmetric_candidate=False)  # the general LU
-    s = model.surfaces[0]
-    method = s.contact.method
-    ddm = ddm_for(model, names)
-    weights = model.convergence_weights(params)
+    loop = _OuterLoop(model, names, params, TangentSolver(get_solver(solver), symmetric_candidate=False),
+                      options, tol, max_outer)  # the general LU
+    out = loop.out
+    for n_inc in range(1, steps + 1):
+        k, newton_its = loop.increment(n_inc / steps, 1.0 / steps)
+        out.outer_iterations.append(k)
+        out.newton_iterations.append(newton_its)
+        log.info("Uzawa increment %d: %d outer iterations, %d Newton iterations", n_inc, k, newton_its)
+    out.w, out.lam = loop.w, np.asarray(loop.lam)
+    if loop.ddm is not None:
+        out.sens = {n: loop.w_dot[j] for j, n in enumerate(names)}
+        out.lam_sens = {n: np.asarray(loop.lam_dot[j]) for j, n in enumerate(names)}
+        out.sens_history = loop.hist
+    out.time_s = time.perf_counter() - t_start
+    return out
 
-    def update(w, p, t, lam_k):
-        X = model.reference(p)
-        u, lams = model.split(w)
-        x, _, _, geo, cp, Xs = model.contact_inputs(s, X, u, lams[0], p, t)
-        return jax.vmap(lambda xs, lk, X0, N0: method.update(
-            xs, geo, model.obstacle_at(s, (X0, N0)), cp, lk))(x, lam_k, *Xs)
 
+def _compiled_update(model, s, method):
+    """(update, its JVP batched over parameters), compiled once per model: the
+    multiplier update lam <- min(lam + eps g, 0) of surface s."""
     if ("uzawa",) not in model.cache:  # compiled once per model, like solve()'s DDM
+        def update(w, p, t, lam_k):
+            X = model.reference(p)
+            u, lams = model.split(w)
+            x, _, _, geo, cp, Xs = model.contact_inputs(s, X, u, lams[0], p, t)
+            return jax.vmap(lambda xs, lk, X0, N0: method.update(
+                xs, geo, model.obstacle_at(s, (X0, N0)), cp, lk))(x, lam_k, *Xs)
+
         model.cache[("uzawa",)] = (jax.jit(update), jax.jit(jax.vmap(
             lambda w, p, t, lk, wd, e, lkd: jax.jvp(
                 lambda w_, p_, l_: update(w_, p_, t, l_), (w, p, lk), (wd, e, lkd))[1],
             (None, None, None, None, 0, 0, 0))))
-    upd, upd_jvp = model.cache[("uzawa",)]
+    return model.cache[("uzawa",)]
 
-    out = UzawaSolution(model)
-    nc = s.nodes.size
-    w = np.zeros(model.n_dof)
-    lam = jnp.zeros(nc)
-    lam_dot = jnp.zeros((len(names), nc))
-    zeros_w = jnp.zeros(model.n_dof)
-    for n_inc in range(1, steps + 1):
-        t = n_inc / steps
+
+class _OuterLoop:
+    """Uzawa's outer iterations of one increment after another, with the state they carry."""
+
+    def __init__(self, model, names, params, lin, options, tol, max_outer):
+        self.model, self.names, self.params, self.lin = model, names, params, lin
+        self.options, self.tol, self.max_outer = options, tol, max_outer
+        s = model.surfaces[0]
+        self.upd, self.upd_jvp = _compiled_update(model, s, s.contact.method)
+        self.ddm = ddm_for(model, names)
+        self.weights = model.convergence_weights(params)
+        self.out = UzawaSolution(model)
+        nc = s.nodes.size
+        self.w = np.zeros(model.n_dof)
+        self.lam = jnp.zeros(nc)
+        self.lam_dot = jnp.zeros((len(names), nc))
+        self.zeros_w = jnp.zeros(model.n_dof)
+        self.w_dot, self.hist = None, {n: [] for n in names}
+
+    def increment(self, t, dt):
+        """Outer iterations to the multipliers' convergence at t: (iterations, Newton iterations)."""
+        model, params, out = self.model, self.params, self.out
         if model.prescribed.size:
-            w[model.prescribed] = np.asarray(model.prescribed_at(params, t))
+            self.w[model.prescribed] = np.asarray(model.prescribed_at(params, t))
         ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t))[model.free]))
-        newton_its, hist = 0, {n: [] for n in names}
-        for k in range(1, max_outer + 1):
-            state = (zeros_w, (lam,))
-            steplog = StepLog(t, 1.0 / steps)
+        newton_its, self.hist = 0, {n: [] for n in self.names}
+        for k in range(1, self.max_outer + 1):
+            state = (self.zeros_w, (self.lam,))
+            steplog = StepLog(t, dt)
             try:
-                w, R, blocks, _ = newton(model, model.pattern, lin, w, params, t, state, options,
-                                      weights, ref, steplog)
+                self.w, R, blocks, _ = newton(model, model.pattern, self.lin, self.w, params, t, state,
+                                              self.options, self.weights, ref, steplog)
             except StepFailure as e:
                 raise ConvergenceError(f"Uzawa inner Newton failed at t={t:.6g}, outer iteration {k}: "
                                        f"{e.reason}", partial=out) from None
             newton_its += steplog.iterations
             out.linear_solves += steplog.iterations
-            wj = jnp.asarray(w)
-            lam_new = upd(wj, params, t, lam)
-            if ddm is not None:
-                fac = lin.factorize(model.pattern.assemble(blocks))
-                sdot = (jnp.zeros((len(names), model.n_dof)), (lam_dot,))
-                try:
-                    w_dot, _ = ddm.solve(fac, wj, params, t, state, sdot)
-                except NonDifferentiableError as e:
-                    raise ConvergenceError(f"Uzawa at t={t:.6g}, outer iteration {k}: {e}",
-                                           partial=out) from None
-                out.linear_solves += 1 + len(names)
-                lam_dot = upd_jvp(wj, params, t, lam, jnp.asarray(w_dot),
-                                  unit_tangents(params, names), lam_dot)
-                for j, n in enumerate(names):
-                    hist[n].append(np.asarray(lam_dot[j]))
-            change = float(jnp.max(jnp.abs(lam_new - lam)))
-            lam = lam_new
-            if change <= tol * max(float(jnp.max(jnp.abs(lam))), 1e-300):
-                break
-        else:
-            raise ConvergenceError(f"Uzawa outer loop did not converge in {max_outer} iterations at "
-                                   f"t={t:.6g} (last multiplier change {change:.2e}); a larger eps "
-                                   "converges faster", partial=out)
-        out.outer_iterations.append(k)
-        out.newton_iterations.append(newton_its)
-        log.info("Uzawa increment %d: %d outer iterations, %d Newton iterations", n_inc, k, newton_its)
-    out.w, out.lam = w, np.asarray(lam)
-    if ddm is not None:
-        out.sens = {n: w_dot[j] for j, n in enumerate(names)}
-        out.lam_sens = {n: np.asarray(lam_dot[j]) for j, n in enumerate(names)}
-        out.sens_history = hist
-    out.time_s = time.perf_counter() - t_start
-    return out
+            wj = jnp.asarray(self.w)
+            lam_new = self.upd(wj, params, t, self.lam)
+            if self.ddm is not None:
+                self._sensitivity(wj, blocks, state, t, k)
+            change = float(jnp.max(jnp.abs(lam_new - self.lam)))
+            self.lam = lam_new
+            if change <= self.tol * max(float(jnp.max(jnp.abs(self.lam))), 1e-300):
+                return k, newton_its
+        raise ConvergenceError(f"Uzawa outer loop did not converge in {self.max_outer} iterations at "
+                               f"t={t:.6g} (last multiplier change {change:.2e}); a larger eps "
+                               "converges faster", partial=out)
+
+    def _sensitivity(self, wj, blocks, state, t, k) -> None:
+        """One iterative sensitivity step: the DDM at frozen multipliers, then the
+        multiplier update's JVP."""
+        model, names, params = self.model, self.names, self.params
+        fac = self.lin.factorize(model.pattern.assemble(blocks))
+        sdot = (jnp.zeros((len(names), model.n_dof)), (self.lam_dot,))
+        try:
+            self.w_dot, _ = self.ddm.solve(fac, wj, params, t, state, sdot)
+        except NonDifferentiableError as e:
+            raise ConvergenceError(f"Uzawa at t={t:.6g}, outer iteration {k}: {e}",
+                                   partial=self.out) from None
+        self.out.linear_solves += 1 + len(names)
+        self.lam_dot = self.upd_jvp(wj, params, t, self.lam, jnp.asarray(self.w_dot),
+                                    unit_tangents(params, names), self.lam_dot)
+        for j, n in enumerate(names):
+            self.hist[n].append(np.asarray(self.lam_dot[j]))
