@@ -259,8 +259,7 @@ def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_f
         raise InputError(f"until must be a load factor in (0, 1], got {until!r}")
     if ddm_factorization not in ("exact", "reuse"):
         raise InputError(f"ddm_factorization must be 'exact' or 'reuse', got {ddm_factorization!r}")
-    names = _sensitivity_names(sensitivities)
-    check_names(names, problem.params, "wrt")
+    names = list(sensitivities)  # checked by solve() under the keyword the user wrote
     check_finite(problem.params)
     if not isinstance(options, NewtonOptions):
         raise InputError(f"options must be a signorini.NewtonOptions, got {type(options).__name__}")

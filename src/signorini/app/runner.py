@@ -53,6 +53,13 @@ def write_summary(out: Path, summary: dict, solution) -> dict:
     return summary
 
 
+def solver_entries(solver, solution) -> dict:
+    """The linear solver of a summary and whether its tangents were factorised as
+    symmetric (also under the key's 0.1 spelling, kept for one release)."""
+    return {"solver": solver.name, "symmetric_factorization": solution.symmetric,
+            "symmetric_factorisation": solution.symmetric}
+
+
 def newton_log(solution) -> dict:
     """The Newton entries of a summary: iterations and residual norms per increment."""
     return {"newton_iterations": solution.newton_iterations,

@@ -31,7 +31,6 @@ from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, from_keywords
 from ..algorithms.stepping import solve, structure_key
 from .finite_differences import finite_difference
 
-MODES = ("ddm", "adjoint", "fd")
 #: compiled adjoints kept per model (one per response object)
 MAX_CACHED = 8
 

@@ -16,7 +16,8 @@ from ..options import (
     Formatter, adjoint_option, finish, forging_mesh_options, parse_sets, print_adjoint, set_help,
     solver_options, with_defaults)
 from ..runner import (
-    Timer, adjoint_report, prepare_output, solve_or_report, summary_header, use_solver, write_summary)
+    Timer, adjoint_report, prepare_output, solve_or_report, solver_entries, summary_header, use_solver,
+    write_summary)
 
 NAME = "forging"
 
@@ -138,8 +139,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "params": v,
         "mesh": {**info, "dofs": int(model.n_dof)},
         "steps": steps,
-        "solver": solver.name, "symmetric_factorization": sol.symmetric,
-        "symmetric_factorisation": sol.symmetric,  # deprecated spelling, kept for 0.2
+        **solver_entries(solver, sol),
         "F": float(F),
         "dF_ddm": dF,
         "dF_fd": fd if fd_check else "not computed (--no-fd)",

@@ -17,8 +17,8 @@ from ..options import (
     UNITS, Formatter, coarse_start_option, common_options, finish, fmt_coarse, fmt_fd, nominal_a0,
     parse_sets, with_defaults)
 from ..runner import (
-    Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, summary_header, use_solver,
-    write_summary)
+    Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
+    use_solver, write_summary)
 
 NAME = "hertz"
 
@@ -132,8 +132,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         "method": method,
         "finite_strain": finite_strain,
         "steps": steps,
-        "solver": solver.name, "symmetric_factorization": sol.symmetric,
-        "symmetric_factorisation": sol.symmetric,  # deprecated spelling, kept for 0.2
+        **solver_entries(solver, sol),
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
         "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,

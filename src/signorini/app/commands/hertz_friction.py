@@ -17,8 +17,8 @@ from ..options import (
     nominal_a0, parse_sets, print_adjoint, with_defaults)
 from .hertz import HERTZ_TEXTS
 from ..runner import (
-    Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, summary_header,
-    use_solver, write_summary)
+    Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
+    summary_header, use_solver, write_summary)
 
 NAME = "hertz-friction"
 
@@ -136,8 +136,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "steps": steps,
         "coarse_start": coarse if coarse else (skipped or "no coarser mesh"),
         "finite_strain": finite_strain,
-        "solver": solver.name, "symmetric_factorization": sol.symmetric,
-        "symmetric_factorisation": sol.symmetric,  # deprecated spelling, kept for 0.2
+        **solver_entries(solver, sol),
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "loads": [{k: val for k, val in lv.items() if k != "contact"} for lv in levels],
         "c_over_a": [lv["c_over_a"] for lv in levels],
