@@ -142,28 +142,8 @@ class Adjoint:
             t1 = time.perf_counter()
             timing["vjp"] += t1 - t0
             if np.any(w_bar[m.free] != 0.0):
-                fac = inc.factor
-                if fac is None:
-                    _, blocks = m.local_tangents(w, params, t, s_prev)
-                    try:
-                        fac = lin.factorize(m.pattern.assemble(blocks))
-                    except SingularTangentError as e:
-                        raise SingularTangentError(
-                            f"the converged tangent at t={t:.6g} is singular, so the adjoint "
-                            f"gradient is undefined: {e}") from None
-                    timing["factorizations"] += 1
-                t2 = time.perf_counter()
-                mu = fac.solve(np.ascontiguousarray(w_bar[m.free]), transpose=True)
+                c = self._multiplier(inc, w, params, s_prev, w_bar, lin, timing)
                 t3 = time.perf_counter()
-                if not np.all(np.isfinite(mu)) or fac.backward_error > ACCURACY:
-                    raise SolverError(
-                        f"the transposed solve at t={t:.6g} is not accurate (backward error "
-                        f"{fac.backward_error:.1e} > {ACCURACY:g}), so the adjoint gradient would be "
-                        "wrong; try another solver (solver='superlu')")
-                timing["tangent_factorization"] += t2 - t1
-                timing["solve"] += t3 - t2
-                c = np.zeros(m.n_dof)
-                c[m.free] = -mu
                 # the branch flags of the converged tangent (evaluated as in local_tangents)
                 cases = self._cases(w, params, t, s_prev) if m.has_contact_history else None
                 rw, rp, rs = self._res_vjp(w, pe, t, s_prev, cases, to_device(c))
@@ -183,3 +163,33 @@ class Adjoint:
         log.info("adjoint: backward pass over %d increment(s), %d factorisation(s)",
                  timing["increments"], timing["factorizations"])
         return G, grad, timing
+
+    def _multiplier(self, inc, w, params, s_prev, w_bar, lin, timing):
+        """The adjoint multiplier of increment ``inc``: ``-K^-T w_bar`` on the free DOFs.
+
+        Reuses the increment's kept factorisation when there is one, else factorises
+        the converged tangent again (counted in ``timing``)."""
+        m, t = self.model, inc.t
+        t1 = time.perf_counter()
+        fac = inc.factor
+        if fac is None:
+            _, blocks = m.local_tangents(w, params, t, s_prev)
+            try:
+                fac = lin.factorize(m.pattern.assemble(blocks))
+            except SingularTangentError as e:
+                raise SingularTangentError(
+                    f"the converged tangent at t={t:.6g} is singular, so the adjoint "
+                    f"gradient is undefined: {e}") from None
+            timing["factorizations"] += 1
+        t2 = time.perf_counter()
+        mu = fac.solve(np.ascontiguousarray(w_bar[m.free]), transpose=True)
+        if not np.all(np.isfinite(mu)) or fac.backward_error > ACCURACY:
+            raise SolverError(
+                f"the transposed solve at t={t:.6g} is not accurate (backward error "
+                f"{fac.backward_error:.1e} > {ACCURACY:g}), so the adjoint gradient would be "
+                "wrong; try another solver (solver='superlu')")
+        timing["tangent_factorization"] += t2 - t1
+        timing["solve"] += time.perf_counter() - t2
+        c = np.zeros(m.n_dof)
+        c[m.free] = -mu
+        return c
