@@ -82,7 +82,7 @@ def one(size: str, solver: str) -> dict:
         if coarse:
             csol, levels = solve_coarse_to_fine(coarse, options=opts, solver=lin)
             initial = prolong(csol, pb)
-        return sg.solve(pb, options=opts, solver=lin, wrt=sens, initial=initial), levels
+        return sg.solve(pb, options=opts, solver=lin, wrt=sens, start=initial), levels
 
     run(NAMES)  # compile every level (not timed)
     # the fastest of three solves, with and without sensitivities (the DDM's own

@@ -5,7 +5,7 @@ below ~1M DOFs, after a compiling run, the fastest of three runs (with and
 without sensitivities), every figure taken from that run.
 As ``signorini hertz-friction``: coarser meshes are solved along the same load
 path first, and every fine increment starts from the fine state plus the
-interpolated coarse increment (``solve(..., guide=...)``); their cost is
+interpolated coarse increment (``solve(..., start=...)``); their cost is
 reported as equivalent fine iterations (iterations x DOF ratio). Reports Newton iterations (total and per increment), wall time of the solve
 without and with DDM sensitivities for R, mu and E, the DDM part (factorisation
 of the converged tangent + pseudo-loads + back-substitutions), the share of
@@ -60,7 +60,7 @@ def one(size: str, steps: int, solver: str, warm: bool) -> dict:
             pb, lambda r, n: hertz_friction_problem(refine=r, n_fine=n), refine, n_fine,
             steps=steps_, options=opts, solver=lin)
         return sg.solve(pb, steps=steps_, wrt=sens, solver=lin, options=opts,
-                        guide=guide), levels
+                        start=guide), levels
 
     if warm:  # compile (not timed); skipped for the largest mesh, whose first run is the run
         run(NAMES, 3)

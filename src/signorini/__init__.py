@@ -13,7 +13,7 @@ from . import _compat
 from ._version import __version__
 from .algorithms.newton import NewtonOptions
 from .algorithms.solution import Solution
-from .algorithms.stepping import solve
+from .algorithms.stepping import Start, solve
 from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty, equivalent_areas
 from .contact.obstacles import Circle, Line
 from .design.finite_differences import finite_difference
@@ -40,7 +40,7 @@ __all__ = [
     "Circle", "Line", "Contact", "AugmentedLagrangian", "Coulomb", "Penalty", "equivalent_areas",
     "Problem",
     # solving
-    "solve", "NewtonOptions", "Solution",
+    "solve", "NewtonOptions", "Start", "Solution",
     # derivatives
     "DDM", "Adjoint", "FiniteDifferences", "gradient", "Gradient", "finite_difference",
     # results

@@ -45,7 +45,7 @@ def test_coarse_to_fine_start_same_solution_fewer_iterations():
                                           options=TIGHT)
     assert [lv["dofs"] for lv in levels] == [model_for(hertz.hertz_problem(n_fine=12)).n_dof,
                                              model_for(hertz.hertz_problem()).n_dof]
-    started = sg.solve(fine, options=TIGHT, sensitivities=["R"], initial=prolong(coarse, fine))
+    started = sg.solve(fine, options=TIGHT, wrt=["R"], start=prolong(coarse, fine))
     assert started.newton_iterations[0] <= 2 < plain.newton_iterations[0]
     assert _rel(started.increments[0].w, plain.increments[0].w) < 1e-9
     assert _rel(started.w_sensitivity("R"), plain.w_sensitivity("R")) < 1e-8
@@ -65,7 +65,7 @@ def test_coarse_meshes_guide_every_increment_of_a_frictional_path():
     assert len(levels) == 2 and all(len(lv["newton_iterations"]) == 6 for lv in levels)
     assert [round(i.t, 12) for i in guide.increments] == [round(k / 6, 12) for k in range(1, 7)]
     plain = sg.solve(fine, steps=6, options=o, sensitivities=["R"])
-    started = sg.solve(fine, steps=6, options=o, sensitivities=["R"], guide=guide)
+    started = sg.solve(fine, steps=6, options=o, wrt=["R"], start=sg.Start(guide=guide))
     # measured: guided 2 1 1 2 1 1, from rest with the extrapolating predictor 7 4 3 3 3 3
     later = started.newton_iterations[1:]
     assert started.newton_iterations[0] <= 3 < plain.newton_iterations[0]
@@ -89,17 +89,17 @@ def test_guide_covers_only_its_own_increments():
     other = sg.solve(hertz_friction_problem(refine=0, n_fine=12), steps=4, options=o)
     near = pb.with_params(mu=pb.params["mu"] * (1 + 1e-6))
     for guide in (half, other, plain):
-        sol = sg.solve(near if guide is plain else pb, steps=6, options=o, guide=guide)
+        sol = sg.solve(near if guide is plain else pb, steps=6, options=o, start=guide)
         ref = plain if guide is not plain else sg.solve(near, steps=6, options=o)
         for a, b in zip(sol.increments, ref.increments):
             assert _rel(a.w, b.w) < 1e-9
     # from the base path of the same mesh, a perturbed re-solve needs one iteration
-    again = sg.solve(near, steps=6, options=o, guide=plain)
+    again = sg.solve(near, steps=6, options=o, start=plain)
     assert max(again.newton_iterations[1:]) <= 1
     P = Prolongation(plain.model, sg.solve(near, steps=1, options=o).model)
     assert (P.matrix != sp.identity(P.matrix.shape[0])).nnz == 0
     with pytest.raises(sg.InputError, match="guide must be a Solution"):
-        sg.solve(pb, guide=plain.increments[0].w)
+        sg.solve(pb, start=sg.Start(guide=plain.increments[0].w))
 
 
 def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
@@ -136,7 +136,7 @@ def test_a_coarse_level_that_converges_nothing_keeps_the_guide_before(monkeypatc
     guides = []
 
     def failing(pb, **kw):
-        guides.append(kw.get("guide"))
+        guides.append(kw.get("start"))
         if pb is pbs[1]:
             raise sg.ConvergenceError("no convergence at t=0.25 (test)", partial=None)
         return real(pb, **kw)

@@ -37,7 +37,12 @@ def test_predictor_changes_iterations_not_the_path():
 def test_initial_guess_is_checked():
     pb = hertz.hertz_problem(n_fine=8, size=8)
     with pytest.raises(sg.InputError, match="initial must be a finite array of shape"):
-        sg.solve(pb, initial=np.zeros(3))
+        sg.solve(pb, start=np.zeros(3))
+    with pytest.raises(sg.InputError, match="start must be a signorini.Start"):
+        sg.solve(pb, start="coarse")
+    with pytest.raises(sg.InputError, match="give the start once"):
+        with pytest.warns(DeprecationWarning):
+            sg.solve(pb, start=np.zeros(3), initial=np.zeros(3))
     with pytest.raises(sg.InputError, match="predictor"):
         sg.NewtonOptions(predictor="quadratic")
     with pytest.raises(sg.InputError, match="ddm_factorization"):
@@ -103,3 +108,20 @@ def test_a_problem_built_again_reuses_its_compiled_model():
     _MODELS.clear()
     with pytest.raises(InputError, match="cannot be evaluated .* division by zero"):
         model_for(pole().with_params(R=2.0))  # a new model's check says the same
+
+
+def test_start_spellings_give_the_same_path():
+    """``start=w0``, ``start=Start(initial=w0)`` and the deprecated ``initial=w0``
+    start Newton at the same point: the same iterations and the same result."""
+    pb = hertz.hertz_problem(n_fine=8, size=8)
+    base = sg.solve(pb)
+    w0 = 0.9 * base.increments[-1].w
+    a = sg.solve(pb, start=w0)
+    b = sg.solve(pb, start=sg.Start(initial=w0))
+    with pytest.warns(DeprecationWarning, match="start=signorini.Start"):
+        c = sg.solve(pb, initial=w0)
+    assert a.newton_iterations == b.newton_iterations == c.newton_iterations
+    assert a.newton_iterations != base.newton_iterations
+    np.testing.assert_array_equal(a.increments[-1].w, b.increments[-1].w)
+    np.testing.assert_array_equal(a.increments[-1].w, c.increments[-1].w)
+    np.testing.assert_allclose(a.increments[-1].w, base.increments[-1].w, rtol=0, atol=1e-9)

@@ -14,7 +14,7 @@ moves by several nodes per increment on a fine mesh, and an extrapolation of
 the last two states overshoots it (zones grow like sqrt(t)), so Newton again
 releases node after node. A coarser mesh solved along the same path locates
 the zone within a coarse node; its interpolated increment, added to the fine
-state, starts each fine increment (``solve(..., guide=coarse_solution)``).
+state, starts each fine increment (``solve(..., start=coarse_solution)``).
 
 The start changes only the first iterate, never the converged solution (to
 the Newton tolerance), so sensitivities and finite differences of the results
@@ -51,7 +51,7 @@ def prolong(coarse: Solution, fine: Problem, increment: int = 0) -> np.ndarray:
         increment: which converged increment of ``coarse`` to interpolate.
 
     Returns:
-        (n_dof,) initial guess for ``signorini.solve(fine, initial=...)``.
+        (n_dof,) initial guess for ``signorini.solve(fine, start=...)``.
     """
     if not coarse.increments:
         raise InputError("prolong: the coarse solution has no converged increment")
@@ -61,7 +61,7 @@ def prolong(coarse: Solution, fine: Problem, increment: int = 0) -> np.ndarray:
 def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
                          whole_path: bool = True, **solve_kwargs) -> tuple[Solution, list[dict]]:
     """Solve ``problems`` (coarse to fine, same physics and load steps), each
-    guided by the one before (``solve(..., guide=...)``): its first increment
+    guided by the one before (``solve(..., start=...)``): its first increment
     starts from the interpolated coarser solution, every later one from its own
     last state plus the interpolated coarser increment. Every level solves the
     whole load path; sensitivities on the finest only. ``whole_path=False``
@@ -91,7 +91,7 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
         try:
             with contextlib.nullcontext() if last else checks.silenced():
                 sol = solve(pb, steps=steps, wrt=wrt if last else (),
-                            guide=sol, label=label if last else f"level {k}", **kw)
+                            start=sol, label=label if last else f"level {k}", **kw)
             done = list(sol.newton_iterations)
         except ConvergenceError as e:
             if last:

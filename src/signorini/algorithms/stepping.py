@@ -142,9 +142,9 @@ def ddm_for(model: Model, names: Sequence[str]) -> DDMEngine | None:
 
 
 def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=None,
-          options: NewtonOptions = NewtonOptions(), solver="auto", label: str | None = None,
-          initial=None, guide: Solution | None = None, until: float = 1.0,
-          switch_tol: float = nonsmooth.SWITCH_TOL, **deprecated) -> Solution:
+          options: NewtonOptions = NewtonOptions(), solver="auto", start=None,
+          until: float = 1.0, switch_tol: float = nonsmooth.SWITCH_TOL,
+          label: str | None = None, **deprecated) -> Solution:
     """Solve a contact problem by incremental Newton, with DDM sensitivities.
 
     Args:
@@ -163,10 +163,9 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
             SuperLU), a name (``pardiso``, ``superlu``, ``umfpack``), a
             :class:`~signorini.linsolve.LinearSolver` instance (reuses its
             symbolic analysis across solves) or an object with ``factorize(K)``.
-        label: name of this solve in log lines and progress bars (e.g. ``"FD R+"``).
-        initial: (n_dof,) first Newton iterate of the first increment (e.g. a coarse
-            solution from :func:`signorini.algorithms.coarse_to_fine.prolong`, or a converged solution
-            of nearby parameters); only the start changes, not the converged result.
+        start: where Newton starts (:class:`Start`; only the start changes, not
+            the converged result): ``Start(initial=w0)`` or the array ``w0`` itself,
+            ``Start(guide=coarse)`` or the coarse :class:`Solution` itself.
         until: stop the load path at this load factor (the increments keep the
             nominal size 1/steps); a coarse-to-fine start solves the coarse meshes
             only to the end of the first increment.
@@ -174,14 +173,7 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
             law below which a point is reported on it (``Increment.switches``,
             :mod:`signorini.sensitivity.nonsmooth`); None: no report (the coarse
             levels of a coarse-to-fine start).
-        guide: a solve of the same problem on a coarser mesh along the same load
-            steps (:func:`signorini.algorithms.coarse_to_fine.solve_coarse_to_fine`). Increment
-            n+1 then starts from w_n + P(w^c_{n+1} - w^c_n), P the interpolation
-            to this mesh (:class:`~signorini.algorithms.coarse_to_fine.Prolongation`), the first
-            from P(w^c_1) unless ``initial`` is given; between the guide's load
-            factors (after a step cut) w^c is interpolated linearly in t, and past
-            its last one (a guide that stopped early) the predictor of ``options``
-            is used. Only the start changes, not the result.
+        label: name of this solve in log lines and progress bars (e.g. ``"FD R+"``).
 
     Returns:
         A :class:`~signorini.algorithms.solution.Solution` with every converged increment;
@@ -197,9 +189,12 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
 
     The keywords of version 0.1 still work, with a DeprecationWarning:
     ``sensitivities=`` (now ``wrt=``), ``ddm_factorization=`` (``method=DDM(...)``),
-    ``checkpoint=`` and ``keep_factors=`` (``method=Adjoint(...)``).
+    ``checkpoint=`` and ``keep_factors=`` (``method=Adjoint(...)``), ``initial=`` and
+    ``guide=`` (``start=Start(...)``).
     """
     old = pop_old(deprecated, "signorini.solve", {
+        "initial": "start=signorini.Start(initial=...)",
+        "guide": "start=signorini.Start(guide=...)",
         "sensitivities": "wrt=[...]", "ddm_factorization": "method=signorini.DDM(factorization=...)",
         "checkpoint": "method=signorini.Adjoint(checkpoint=...)",
         "keep_factors": 'method=signorini.Adjoint(factors="store")'})
@@ -227,10 +222,56 @@ def solve(problem: Problem, *, steps: int = 1, wrt: Sequence[str] = (), method=N
     if switch_tol is not None and not (isinstance(switch_tol, (int, float)) and 0 <= switch_tol < 1):
         raise InputError(f"switch_tol must be a number in [0, 1) or None (no report), got "
                          f"{switch_tol!r}")
+    start = Start.of(start, old.get("initial"), old.get("guide"))
     with openblas_single_thread(), contextlib.ExitStack() as stack:
-        return _solve(problem, steps, wrt, options, solver, label, initial,
+        return _solve(problem, steps, wrt, options, solver, label, start.initial,
                       ddm_factorization, until, int(checkpoint), bool(keep_factors), switch_tol,
-                      guide, stack)
+                      start.guide, stack)
+
+
+@dataclasses.dataclass(frozen=True)
+class Start:
+    """Where the Newton iterations of :func:`solve` start. Only the start changes,
+    not the converged result.
+
+    Attributes:
+        initial: (n_dof,) first Newton iterate of the first increment (e.g. a
+            coarse solution interpolated by
+            :func:`signorini.algorithms.coarse_to_fine.prolong`, or a converged
+            solution of nearby parameters).
+        guide: a solve of the same problem on a coarser mesh along the same load
+            steps (:func:`signorini.algorithms.coarse_to_fine.solve_coarse_to_fine`).
+            Increment n+1 then starts from w_n + P(w^c_{n+1} - w^c_n), P the
+            interpolation to this mesh
+            (:class:`~signorini.algorithms.coarse_to_fine.Prolongation`), the first
+            from P(w^c_1) unless ``initial`` is given; between the guide's load
+            factors (after a step cut) w^c is interpolated linearly in t, and past
+            its last one (a guide that stopped early) the predictor of the
+            :class:`NewtonOptions` is used.
+    """
+
+    initial: np.ndarray | None = None
+    guide: Solution | None = None
+
+    @classmethod
+    def of(cls, start, initial=None, guide=None) -> "Start":
+        """``start`` as a :class:`Start` (an array is ``initial``, a
+        :class:`Solution` the ``guide``), merged with the deprecated keywords."""
+        if start is None:
+            start = cls()
+        elif isinstance(start, Solution):
+            start = cls(guide=start)
+        elif not isinstance(start, cls):
+            if isinstance(start, (str, bytes, Mapping)) or not hasattr(start, "__len__"):
+                raise InputError(f"start must be a signorini.Start, an array (the first iterate) "
+                                 f"or a Solution (a coarse guide), got {type(start).__name__}")
+            start = cls(initial=start)
+        if initial is not None or guide is not None:
+            if start.initial is not None or start.guide is not None:
+                raise InputError("give the start once, as start= (initial= and guide= are its "
+                                 "old spellings)")
+            start = cls(initial=initial, guide=guide)
+        return start
 
 
 def kept_solver(model: Model, solver, stack: contextlib.ExitStack):

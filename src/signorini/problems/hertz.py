@@ -222,7 +222,7 @@ def coarse_start_skipped(pb, coarse_start: bool) -> str | None:
 def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options, solver):
     """(guide, levels): the meshes ``build(refine, n_fine)`` of
     :func:`coarse_levels`, solved coarse to fine along the whole load path, the
-    finest of them a ``guide`` for ``solve(pb, guide=...)``; (None, []) without
+    finest of them a ``guide`` for ``solve(pb, start=...)``; (None, []) without
     a coarser mesh. A failing coarse level guides only over the increments it
     converged (recorded in ``levels``)."""
     coarse = [build(r, n) for r, n in coarse_levels(refine, n_fine)]

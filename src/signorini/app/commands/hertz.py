@@ -109,7 +109,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
             refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           wrt=sensitivities, options=options, solver=solver,
-                          guide=guide)
+                          start=guide)
     t_solve = clock() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]
@@ -124,7 +124,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     ddm_fd = {}
     if fd_check:
         ddm_fd = _ddm_vs_fd(pb, sol, x < 0.9 * an["a"], sensitivities, steps=steps, options=options,
-                            rel_step=fd_step, solver=solver, guide=sol if coarse_start else None)
+                            rel_step=fd_step, solver=solver, start=sol if coarse_start else None)
     _figures(out, x, c, an, v, method, sensitivities)
     summary = summary_header("converged", sol)
     summary.update({

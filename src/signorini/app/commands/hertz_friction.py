@@ -109,7 +109,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
             refine, 24, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, "hertz_friction", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           wrt=sensitivities, options=options, solver=solver,
-                          guide=guide)
+                          start=guide)
     t_solve = clock() - t0
 
     adj = None
@@ -128,7 +128,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     if fd_check:
         ddm_fd = _ddm_vs_fd(pb, levels[-1], [n for n in ("R", "mu") if n in sensitivities], steps=steps,
                             options=options, rel_step=fd_step, solver=solver,
-                            guide=sol if coarse_start else None)
+                            start=sol if coarse_start else None)
 
     summary = summary_header("converged", sol)
     summary.update({
