@@ -166,7 +166,7 @@ def test_weakly_active_node_is_reported_and_derivative_is_one_sided(tmp_path):
     pb = touching_block()
     node = int(np.argmin(np.abs(pb.mesh.nodes[:, 0] - 1.0) + np.abs(pb.mesh.nodes[:, 1])))
     with pytest.warns(sg.errors.SignoriniWarning, match="one-sided"):
-        sol = sg.solve(pb, steps=2, sensitivities=["yc"])
+        sol = sg.solve(pb, steps=2, wrt=["yc"])
     for inc in sol.increments:
         assert inc.switches["weakly_active"] == [[node]]
     summary = runner.summary_header("converged", sol)
@@ -192,7 +192,7 @@ def test_weakly_active_node_is_reported_and_derivative_is_one_sided(tmp_path):
 
 
 def test_no_switch_points_in_a_clear_hertz_contact():
-    sol = sg.solve(hertz.hertz_problem(n_fine=12), sensitivities=["R"])
+    sol = sg.solve(hertz.hertz_problem(n_fine=12), wrt=["R"])
     assert all(sum(map(len, inc.switches["weakly_active"])) == 0 for inc in sol.increments)
     assert not any("one-sided" in w for w in sol.warnings)
 

@@ -40,7 +40,7 @@ def test_prolongation_is_built_once_per_pair_of_meshes():
 
 def test_coarse_to_fine_start_same_solution_fewer_iterations():
     fine = hertz.hertz_problem(refine=1)
-    plain = sg.solve(fine, options=TIGHT, sensitivities=["R"])
+    plain = sg.solve(fine, options=TIGHT, wrt=["R"])
     coarse, levels = solve_coarse_to_fine([hertz.hertz_problem(n_fine=12), hertz.hertz_problem()],
                                           options=TIGHT)
     assert [lv["dofs"] for lv in levels] == [model_for(hertz.hertz_problem(n_fine=12)).n_dof,
@@ -64,7 +64,7 @@ def test_coarse_meshes_guide_every_increment_of_a_frictional_path():
         solver="auto")
     assert len(levels) == 2 and all(len(lv["newton_iterations"]) == 6 for lv in levels)
     assert [round(i.t, 12) for i in guide.increments] == [round(k / 6, 12) for k in range(1, 7)]
-    plain = sg.solve(fine, steps=6, options=o, sensitivities=["R"])
+    plain = sg.solve(fine, steps=6, options=o, wrt=["R"])
     started = sg.solve(fine, steps=6, options=o, wrt=["R"], start=sg.Start(guide=guide))
     # measured: guided 2 1 1 2 1 1, from rest with the extrapolating predictor 7 4 3 3 3 3
     later = started.newton_iterations[1:]
@@ -118,10 +118,10 @@ def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
 
     monkeypatch.setattr(solve_module, "solve", failing)
     o = sg.NewtonOptions(rtol=1e-10)
-    sol, levels = solve_coarse_to_fine([coarse, fine], steps=6, options=o, sensitivities=["mu"])
+    sol, levels = solve_coarse_to_fine([coarse, fine], steps=6, options=o, wrt=["mu"])
     assert "test" in levels[0]["failed"] and len(levels[0]["newton_iterations"]) == 3
     assert "failed" not in levels[1] and len(sol.increments) == 6
-    plain = real(fine, steps=6, options=o, sensitivities=["mu"])
+    plain = real(fine, steps=6, options=o, wrt=["mu"])
     for a, b in zip(sol.increments, plain.increments):
         assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["mu"], b.sens["mu"]) < 1e-8
 

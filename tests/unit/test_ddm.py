@@ -32,12 +32,12 @@ def test_kept_stiffness_derivative_gives_the_jvp_pseudo_load(friction, monkeypat
     pb = pressed_block(friction)
     names = ["d", "s", "E", "nu", "R"] + (["mu"] if friction else [])
     o = sg.NewtonOptions(rtol=1e-12)
-    kept = sg.solve(pb, steps=4, sensitivities=names, options=o, solver="superlu")
+    kept = sg.solve(pb, steps=4, wrt=names, options=o, solver="superlu")
     ddm = sg.solve.__globals__["ddm_for"](kept.model, names)
     # dK_e/dphi was kept for nu; for E it is K_e / E (the elastic stress is proportional to E)
     assert ddm._dke is not None and ddm._dke[1] == ("nu",) and ddm._proportional == "E"
     monkeypatch.setattr(DDM, "_linear_pseudo", lambda *a: False)  # the JVP every increment
-    jvp = sg.solve(pb, steps=4, sensitivities=names, options=o, solver="superlu")
+    jvp = sg.solve(pb, steps=4, wrt=names, options=o, solver="superlu")
     for a, b in zip(kept.increments, jvp.increments):
         for n in names:
             assert np.max(np.abs(a.sens[n] - b.sens[n])) <= 1e-10 * np.max(np.abs(b.sens[n])), n
@@ -60,11 +60,11 @@ def test_pseudo_load_of_the_modulus_is_the_internal_force_over_it(monkeypatch):
                              (hertz_friction_problem(refine=0), 4, ["R", "mu", "E", "nu"])):
         _MODELS.clear()
         assert ddm_mod.proportional_parameter(model_for(pb)) == "E"
-        fast = sg.solve(pb, steps=steps, sensitivities=names, options=o)
+        fast = sg.solve(pb, steps=steps, wrt=names, options=o)
         with monkeypatch.context() as mp:
             mp.setattr(ddm_mod, "proportional_parameter", lambda m: None)
             _MODELS.clear()
-            jvp = sg.solve(pb, steps=steps, sensitivities=names, options=o)
+            jvp = sg.solve(pb, steps=steps, wrt=names, options=o)
             assert sg.solve.__globals__["ddm_for"](jvp.model, names)._proportional is None
         _MODELS.clear()
         for a, b in zip(fast.increments, jvp.increments):
@@ -96,7 +96,7 @@ def test_element_pseudo_load_on_the_parameters_alone_equals_the_full_jvp():
     pb = dataclasses.replace(base, shape={**base.shape, "h": V}, params={**base.params, "h": 0.0},
                              shape_nominal={**base.shape_nominal, "h": 0.0})
     names = ["E", "nu", "h"]
-    sol = sg.solve(pb, sensitivities=names)
+    sol = sg.solve(pb, wrt=names)
     m, p = model_for(pb), as_jax(pb.params)
     ddm = DDM(m, names)
     assert {"E", "nu", "h"} <= ddm._element_names
@@ -121,8 +121,8 @@ def test_only_the_designed_element_parameters_are_differentiated():
     V = np.column_stack([X[:, 0] * X[:, 1], np.sin(X[:, 0])])
     pb = dataclasses.replace(base, shape={**base.shape, "h": V}, params={**base.params, "h": 0.0},
                              shape_nominal={**base.shape_nominal, "h": 0.0})
-    alone = sg.solve(pb, sensitivities=["E"]).increments[-1].sens["E"]
-    among = sg.solve(pb, sensitivities=["h", "E", "nu"]).increments[-1].sens["E"]
+    alone = sg.solve(pb, wrt=["E"]).increments[-1].sens["E"]
+    among = sg.solve(pb, wrt=["h", "E", "nu"]).increments[-1].sens["E"]
     assert np.max(np.abs(alone)) > 0
     assert np.max(np.abs(alone - among)) <= 1e-12 * np.max(np.abs(among))
 
@@ -130,7 +130,7 @@ def test_only_the_designed_element_parameters_are_differentiated():
 def test_reused_ddm_factorisation_is_exact_to_round_off():
     pb = hertz_friction_problem(refine=0)
     names = ["R", "mu", "E"]
-    o = dict(steps=12, sensitivities=names, options=sg.NewtonOptions(rtol=1e-10))
+    o = dict(steps=12, wrt=names, options=sg.NewtonOptions(rtol=1e-10))
     a = sg.solve(pb, ddm_factorization="exact", **o)
     b = sg.solve(pb, ddm_factorization="reuse", **o)
     assert sum(inc.timing["reused_factorization"] for inc in b.increments) >= 6

@@ -6,14 +6,15 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from signorini.post import files
 
 
 def test_vtu_has_fields_and_sensitivities(tmp_path):
     from signorini.problems import hertz
 
     pb = hertz.hertz_problem(n_fine=6, size=8)
-    sol = sg.solve(pb, sensitivities=["R"])
-    sg.io.write_vtu(sol, tmp_path / "r.vtu")
+    sol = sg.solve(pb, wrt=["R"])
+    files.write_vtu(sol, tmp_path / "r.vtu")
     back = meshio.read(tmp_path / "r.vtu")
     for key in ("displacement", "ddisplacement_dR", "p_N", "dp_N_dR", "gap"):
         assert key in back.point_data, key
@@ -32,9 +33,9 @@ def test_write_pvd_series(tmp_path):
     pb = sg.Problem(m, sg.LinearElastic("E", 0.3), {"E": 100.0, "q": 2.0},
                     fixed=(sg.Fixed("bottom", 1), sg.Fixed("left", 0)),
                     loads=(sg.Pressure("top", "q"),))
-    sol = sg.solve(pb, steps=3, sensitivities=["q"])
+    sol = sg.solve(pb, steps=3, wrt=["q"])
     (tmp_path / "series").mkdir()
-    pvd = sg.io.write_pvd(sol, tmp_path / "series" / "run.pvd")
+    pvd = files.write_pvd(sol, tmp_path / "series" / "run.pvd")
     assert pvd == tmp_path / "series" / "run.pvd"
     root = ET.parse(pvd).getroot()
     assert root.tag == "VTKFile" and root.get("type") == "Collection"
@@ -48,8 +49,8 @@ def test_write_pvd_series(tmp_path):
     assert sorted(p.name for p in pvd.parent.iterdir()) == [
         "run.pvd", "run_0001.vtu", "run_0002.vtu", "run_0003.vtu"]
     # a subset of increments; a bad index is an InputError
-    sg.io.write_pvd(sol, tmp_path / "last.pvd", increments=[-1])
+    files.write_pvd(sol, tmp_path / "last.pvd", increments=[-1])
     ds = ET.parse(tmp_path / "last.pvd").getroot().findall("./Collection/DataSet")
     assert [(d.get("file"), float(d.get("timestep"))) for d in ds] == [("last_0003.vtu", 1.0)]
     with pytest.raises(sg.InputError, match="increment 7 does not exist"):
-        sg.io.write_pvd(sol, tmp_path / "bad.pvd", increments=[7])
+        files.write_pvd(sol, tmp_path / "bad.pvd", increments=[7])

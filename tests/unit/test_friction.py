@@ -22,7 +22,7 @@ def small():
     """Small frictional Hertz (12 cells across 1.5 a, block 10 a): open, stick and
     slip nodes at every load."""
     pb = hf.hertz_friction_problem(n_fine=12, size=10)
-    sol = sg.solve(pb, steps=STEPS, sensitivities=["R", "mu", "E", "eps", "eps_t"], options=TIGHT)
+    sol = sg.solve(pb, steps=STEPS, wrt=["R", "mu", "E", "eps", "eps_t"], options=TIGHT)
     return pb, sol
 
 
@@ -263,8 +263,8 @@ def test_mu_zero_reproduces_frictionless_element():
     fric = hf.hertz_friction_problem({"mu": 0.0}, n_fine=12, size=10)
     same = {k: fric.params[k] for k in ("E", "nu", "P", "R")}
     fl = hertz.hertz_problem(same, n_fine=12, size=10, nominal=same)  # the same mesh
-    a = sg.solve(fric, steps=2, sensitivities=["R", "E"], options=TIGHT)
-    b = sg.solve(fl, steps=2, sensitivities=["R", "E"], options=TIGHT)
+    a = sg.solve(fric, steps=2, wrt=["R", "E"], options=TIGHT)
+    b = sg.solve(fl, steps=2, wrt=["R", "E"], options=TIGHT)
     for k in range(2):
         assert np.allclose(a.displacement(k), b.displacement(k), rtol=0,
                            atol=1e-10 * np.abs(b.displacement(k)).max())

@@ -63,8 +63,8 @@ def test_optional_solver_matches_superlu_in_hertz(name):
     if reason is not None:
         pytest.skip(f"optional solver {name!r} is not installed on this machine: {reason}")
     pb = hertz.hertz_problem(n_fine=8, size=8)
-    a = sg.solve(pb, sensitivities=["R"])
-    b = sg.solve(pb, sensitivities=["R"], solver=name)
+    a = sg.solve(pb, wrt=["R"])
+    b = sg.solve(pb, wrt=["R"], solver=name)
     assert np.allclose(a.increments[-1].w, b.increments[-1].w, rtol=0, atol=1e-10)
     ra, rb = a.w_sensitivity("R"), b.w_sensitivity("R")
     assert np.max(np.abs(ra - rb)) <= 1e-8 * np.max(np.abs(ra))
@@ -324,7 +324,7 @@ def test_several_columns_as_a_block_or_one_by_one_as_timed(friction):
 @needs_pardiso
 def test_one_analysis_for_a_whole_load_path():
     s = Pardiso()
-    sol = sg.solve(hertz.hertz_problem(n_fine=8, size=8), steps=4, sensitivities=["R"], solver=s)
+    sol = sg.solve(hertz.hertz_problem(n_fine=8, size=8), steps=4, wrt=["R"], solver=s)
     n_fac = sum(lg.iterations for lg in sol.log) + len(sol.increments)  # Newton + DDM
     assert s.factorizations == n_fac and s.analyses == 1
 
@@ -338,14 +338,14 @@ def test_a_named_solver_keeps_its_analysis_for_every_solve_of_the_model():
     from signorini.algorithms.stepping import kept_solver
 
     pb = hertz.hertz_problem(n_fine=8)
-    a = sg.solve(pb, sensitivities=["E"])
+    a = sg.solve(pb, wrt=["E"])
     inst = a.linear_solver
     if not isinstance(inst, Pardiso):
         pytest.skip("PARDISO is not installed: no analysis to count")
     before = inst.analyses
-    b = sg.solve(pb.with_params(E=1.1 * pb.params["E"]), sensitivities=["E"])
+    b = sg.solve(pb.with_params(E=1.1 * pb.params["E"]), wrt=["E"])
     assert b.linear_solver is inst and inst.analyses == before
-    fresh = sg.solve(pb.with_params(E=1.1 * pb.params["E"]), sensitivities=["E"], solver=Pardiso())
+    fresh = sg.solve(pb.with_params(E=1.1 * pb.params["E"]), wrt=["E"], solver=Pardiso())
     assert _rel(b.increments[-1].w, fresh.increments[-1].w) < 1e-12
     assert _rel(b.increments[-1].sens["E"], fresh.increments[-1].sens["E"]) < 1e-10
     with contextlib.ExitStack() as stack:  # in use: the next solve gets its own instance
@@ -421,9 +421,9 @@ def test_analysis_with_every_contact_node_closed_avoids_perturbed_pivots():
     lam = np.searchsorted(m.free, m.surfaces[0].lam_dofs)
     assert Kc is not None and np.all(Kc.diagonal()[lam] == 0.0)  # every lam_N row closed
     s = Pardiso()
-    sol = sg.solve(pb, sensitivities=["R"], solver=s)
+    sol = sg.solve(pb, wrt=["R"], solver=s)
     assert sol.symmetric and sol.newton_iterations[0] >= 4 and s.perturbed_pivots == 0
-    ref = sg.solve(pb, sensitivities=["R"], solver="superlu")
+    ref = sg.solve(pb, wrt=["R"], solver="superlu")
     assert _rel(sol.increments[-1].w, ref.increments[-1].w) < 1e-10
     assert _rel(sol.w_sensitivity("R"), ref.w_sensitivity("R")) < 1e-8
     # analysed with the first tangent's own values instead, pivots are perturbed

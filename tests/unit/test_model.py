@@ -26,7 +26,7 @@ def test_element_kernels_in_chunks_equal_one_vmap():
     from signorini.algorithms.stepping import _MODELS
 
     ref_pb, pb = forging.forging_problem(), forging.forging_problem()
-    kw = dict(options=forging.options(), steps=4, sensitivities=names)
+    kw = dict(options=forging.options(), steps=4, wrt=names)
     ref_m = model_for(ref_pb)
     ref = sg.solve(ref_pb, **kw)
     _MODELS.clear()  # the same problem would share ref_m: a second model

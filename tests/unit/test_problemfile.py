@@ -12,6 +12,7 @@ import pytest
 
 import signorini as sg
 from signorini.app import problemfile as pf
+from signorini.fem.meshfile import read_mesh
 
 BLOCK = """\
 title = "block on a cylinder"
@@ -115,12 +116,12 @@ def test_toml_equals_python_problem(tmp_path):
                     loads=(sg.Pressure("bottom", "P", resultant=True),),
                     contact=(sg.Contact(sg.Circle("R", (0.0, "R")), "top",
                                         sg.AugmentedLagrangian(400.0)),))
-    ref = sg.solve(pb, sensitivities=["R", "E"])
+    ref = sg.solve(pb, wrt=["R", "E"])
     c = ref.contact()
     assert (c["p_N"] > 0).sum() >= 2
     scale = np.abs(c["p_N"]).max()
     problem, cfg = pf.load(tmp_path / "problem.toml")
-    c_file = sg.solve(problem, steps=cfg.steps, sensitivities=cfg.sensitivities,
+    c_file = sg.solve(problem, steps=cfg.steps, wrt=cfg.sensitivities,
                       options=cfg.options).contact()
     np.testing.assert_allclose(c_file["p_N"], c["p_N"], rtol=0, atol=1e-12 * scale)
     np.testing.assert_allclose(c_file["dp_N_dR"], c["dp_N_dR"], rtol=0,
@@ -184,7 +185,7 @@ def test_gmsh_mesh_file(tmp_path):
                                   **{g: np.array([tag, 1]) for g, tag in groups.items()}})
     (tmp_path / "meshes").mkdir()
     msh.write(tmp_path / "meshes" / "body.msh", file_format="gmsh22", binary=False)
-    m = sg.io.read_mesh(tmp_path / "meshes" / "body.msh")
+    m = read_mesh(tmp_path / "meshes" / "body.msh")
     assert {"top", "bottom", "left"} <= set(m.edge_sets) and "all" in m.node_sets
 
     text = re.sub(r"(?s)\[mesh\].*?\n\n", '[mesh]\nfile = "meshes/body.msh"\n\n', BLOCK)
@@ -197,6 +198,33 @@ def test_gmsh_mesh_file(tmp_path):
     np.testing.assert_allclose(a["p_N"], b["p_N"], rtol=0, atol=1e-12 * b["p_N"].max())
     assert s_file["responses"]["p_max"]["value"] == pytest.approx(
         s_rect["responses"]["p_max"]["value"], rel=1e-12)
+
+
+def test_mesh_file_warnings_land_in_summary(tmp_path):
+    """A suspicious mesh file (a point set with a node outside the body) is heard
+    once per load as a SignoriniWarning and listed in summary.json, also when the
+    mesh comes from the reader's cache."""
+    ref = sg.rectangle(np.linspace(0, 2, 9), np.linspace(-1, 0, 5))
+    pts = np.vstack([ref.nodes, [[5.0, 5.0]]])  # the last node belongs to no cell
+    groups = {"top": 2, "bottom": 3, "left": 4}
+    lines = [ref.edge_sets[g] for g in groups]
+    tags = [np.full(len(e), tag) for e, tag in zip(lines, groups.values())]
+    msh = meshio.Mesh(np.column_stack([pts, np.zeros(len(pts))]),
+                      [("quad", ref.cells), ("line", np.vstack(lines)), ("vertex", [[len(pts) - 1]])],
+                      cell_data={"gmsh:physical": [np.ones(ref.n_cells, int), np.concatenate(tags), [5]],
+                                 "gmsh:geometrical": [np.ones(ref.n_cells, int), np.concatenate(tags), [5]]},
+                      field_data={"body": np.array([1, 2]), "centre": np.array([5, 0]),
+                                  **{g: np.array([tag, 1]) for g, tag in groups.items()}})
+    msh.write(tmp_path / "body.msh", file_format="gmsh22", binary=False)
+    text = re.sub(r"(?s)\[mesh\].*?\n\n", '[mesh]\nfile = "body.msh"\n\n', BLOCK)
+    text = text.replace('"R", "E", "W"', '"R", "E"')
+    path = _write(tmp_path, text)
+    expected = "point set 'centre': 1 node(s) belong to no quadrilateral"
+    for attempt in range(2):  # the second load reads the mesh from the cache
+        with pytest.warns(sg.SignoriniWarning, match=re.escape(expected)):
+            summary = pf.run(path, tmp_path / f"out{attempt}")
+        assert summary["status"] == "converged"
+        assert [w for w in summary["warnings"] if expected in w], summary["warnings"]
 
 
 def test_series_and_friction_columns(tmp_path):

@@ -13,7 +13,7 @@ def test_reactions_are_the_forces_of_the_supports_on_the_body():
     pb = sg.Problem(m, sg.LinearElastic(), {"E": 10.0, "nu": 0.3, "q": 0.2},
                     fixed=(sg.Fixed("bottom", 0), sg.Fixed("bottom", 1)),
                     loads=(sg.Pressure("top", "q"),))
-    sol = sg.solve(pb, sensitivities=["q"])
+    sol = sg.solve(pb, wrt=["q"])
     r = sol.reactions()[m.node_set("bottom")]
     assert np.isclose(r[:, 1].sum(), 0.2, rtol=1e-12) and abs(r[:, 0].sum()) < 1e-12
     assert np.isclose(sol.reaction_sensitivity("q")[m.node_set("bottom"), 1].sum(), 1.0, rtol=1e-12)

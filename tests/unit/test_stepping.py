@@ -24,7 +24,7 @@ def test_predictor_changes_iterations_not_the_path():
     # 29 against 27; 51 against 27 while the tie was decided by rounding)
     pb = hertz_friction_problem(refine=0)
     names = ["R", "mu", "E"]
-    o = dict(steps=30, sensitivities=names)
+    o = dict(steps=30, wrt=names)
     a = sg.solve(pb, options=sg.NewtonOptions(rtol=1e-10, predictor="none"), **o)
     b = sg.solve(pb, options=sg.NewtonOptions(rtol=1e-10, predictor="extrapolate"), **o)
     assert sum(b.newton_iterations) < 0.75 * sum(a.newton_iterations)
@@ -51,8 +51,8 @@ def test_initial_guess_is_checked():
 
 def test_until_stops_the_path_with_nominal_increments():
     pb = hertz_friction_problem(refine=0)
-    full = sg.solve(pb, steps=6, sensitivities=["mu"])
-    half = sg.solve(pb, steps=6, sensitivities=["mu"], until=0.5)
+    full = sg.solve(pb, steps=6, wrt=["mu"])
+    half = sg.solve(pb, steps=6, wrt=["mu"], until=0.5)
     assert [round(i.t, 12) for i in half.increments] == [round(1 / 6, 12), round(2 / 6, 12), 0.5]
     for a, b in zip(half.increments, full.increments):
         assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["mu"], b.sens["mu"]) < 1e-8
@@ -78,9 +78,9 @@ def test_a_problem_built_again_reuses_its_compiled_model():
     a, b = hertz.hertz_problem({"R": 1.0}), hertz.hertz_problem({"R": 1.2})
     m = model_for(a)
     assert model_for(b) is m and b.mesh is not a.mesh
-    shared = sg.solve(b, sensitivities=["R"]).increments[-1]
+    shared = sg.solve(b, wrt=["R"]).increments[-1]
     _MODELS.clear()
-    fresh = sg.solve(hertz.hertz_problem({"R": 1.2}), sensitivities=["R"]).increments[-1]
+    fresh = sg.solve(hertz.hertz_problem({"R": 1.2}), wrt=["R"]).increments[-1]
     assert model_for(b) is not m
     assert np.max(np.abs(shared.w - fresh.w)) <= 1e-12 * np.max(np.abs(fresh.w))
     assert np.max(np.abs(shared.sens["R"] - fresh.sens["R"])) <= 1e-9 * np.max(np.abs(fresh.sens["R"]))

@@ -18,7 +18,7 @@ def pair():
     pb = hertz.hertz_problem(n_fine=8, size=8)
     c = pb.contact[0]
     pu = dataclasses.replace(pb, contact=(sg.Contact(c.obstacle, c.edges, UzawaPenalty("eps")),))
-    al = sg.solve(pb, sensitivities=["R", "E"], options=TIGHT)
+    al = sg.solve(pb, wrt=["R", "E"], options=TIGHT)
     uz = solve_uzawa(pu, wrt=["R", "E"], options=TIGHT, tol=1e-10)  # above the inner noise
     return pb, pu, al, uz
 

@@ -25,7 +25,7 @@ def test_thick_cylinder_matches_lame():
     pb = sg.Problem(mesh, sg.LinearElastic(), {"E": E, "nu": NU, "p": p},
                     fixed=(sg.Fixed("bottom", 1), sg.Fixed("top", 1)),
                     loads=(sg.Pressure("left", "p"),), kinematics=Axisymmetric())
-    sol = sg.solve(pb, sensitivities=["p"])
+    sol = sg.solve(pb, wrt=["p"])
     R = mesh.nodes[:, 0]
     ur = sol.displacement()[:, 0]
     exact = lame_ur(R, a, b, p)

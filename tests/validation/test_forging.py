@@ -74,7 +74,7 @@ def test_forging_ddm_equals_central_fd():
     pb = fg.forging_problem({"mu": 0.3}, mesh=(4, 8))
     opts = fg.options(1e-12)
     names = list(fg.TABLE1)
-    sol = sg.solve(pb, steps=20, sensitivities=names, options=opts)
+    sol = sg.solve(pb, steps=20, wrt=names, options=opts)
     assert not any(not s.converged for s in sol.log)  # no step cut: the same path as the FD runs
     F_fn = fg.objective(sol.model, fg.lateral_nodes(pb))
     F, dF = sol.response(F_fn)

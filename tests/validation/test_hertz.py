@@ -15,7 +15,7 @@ TIGHT = sg.NewtonOptions(rtol=1e-11)
 @pytest.fixture(scope="module")
 def default():
     pb = hertz.hertz_problem()
-    return pb, sg.solve(pb, sensitivities=["R", "E", "P", "bump", "eps"], options=TIGHT)
+    return pb, sg.solve(pb, wrt=["R", "E", "P", "bump", "eps"], options=TIGHT)
 
 
 def rms_error(sol):
@@ -133,7 +133,7 @@ def test_finite_strain_hertz_quadratic_newton_and_ddm():
     """Neo-Hooke block with finite contact kinematics: Newton ends quadratically
     and DDM matches FD through the fully nonlinear problem."""
     pb = hertz.hertz_problem(finite_strain=True, n_fine=12, size=12)
-    sol = sg.solve(pb, steps=2, sensitivities=["R", "E"], options=TIGHT)
+    sol = sg.solve(pb, steps=2, wrt=["R", "E"], options=TIGHT)
     for inc in sol.increments:
         r = inc.newton.residuals
         print("Newton |R|:", " ".join(f"{v:.2e}" for v in r))
@@ -160,7 +160,7 @@ def test_obstacle_centre_and_poisson_ratio_as_design_parameters():
     c = pb.contact[0]
     pb = dataclasses.replace(pb, params={**pb.params, "cy": 0.0},
                              contact=(sg.Contact(circle, c.edges, c.method, kinematics="finite"),))
-    sol = sg.solve(pb, sensitivities=["cy", "nu"], options=TIGHT)
+    sol = sg.solve(pb, wrt=["cy", "nu"], options=TIGHT)
     du = sol.displacement_sensitivity("cy")
     assert np.allclose(du[:, 0], 0.0, atol=1e-9) and np.allclose(du[:, 1], 1.0, atol=1e-9)
     # Dp_N/Dcy is a pressure per length: its scale is p0/a (measured: 6e-10 of it)

@@ -119,7 +119,7 @@ def held_problem(obstacle, law, kin, geometry, Q=None):
 
 def _solve(problem, law, names, **values):
     steps = 3 if law == "coulomb" else 1
-    sol = sg.solve(problem.with_params(**values), steps=steps, sensitivities=names, options=TIGHT)
+    sol = sg.solve(problem.with_params(**values), steps=steps, wrt=names, options=TIGHT)
     out = sol.contact()
     # the load factors reached: Newton starts from the body at rest, not from a body that
     # followed the obstacle, so a frictionless run may cut a step in one case and not in

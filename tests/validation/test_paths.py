@@ -41,7 +41,7 @@ def states(c):
 @pytest.fixture(scope="module")
 def friction():
     pb = hf.hertz_friction_problem({"mu": MU}, n_fine=8, size=5)
-    sol = sg.solve(pb, steps=STEPS, sensitivities=["R", "mu"], options=TAYLOR)
+    sol = sg.solve(pb, steps=STEPS, wrt=["R", "mu"], options=TAYLOR)
     return pb, sol
 
 
@@ -73,7 +73,7 @@ def test_taylor_remainder_of_frictional_load_path(friction, name):
     phi = pb.params[name]
     w0 = sol.increments[-1].w
     d = sol.w_sensitivity(name)
-    d_one_step = sg.solve(pb, steps=1, sensitivities=[name], options=TAYLOR).w_sensitivity(name)
+    d_one_step = sg.solve(pb, steps=1, wrt=[name], options=TAYLOR).w_sensitivity(name)
 
     def run(h):
         s = sg.solve(pb.with_params(**{name: phi + h}), steps=STEPS, options=TAYLOR)
@@ -113,8 +113,8 @@ def _rel(a, b):
 
 
 def _one_vs_ten(pb, names):
-    one = sg.solve(pb, steps=1, sensitivities=names, options=TIGHT)
-    ten = sg.solve(pb, steps=10, sensitivities=names, options=TIGHT)
+    one = sg.solve(pb, steps=1, wrt=names, options=TIGHT)
+    ten = sg.solve(pb, steps=10, wrt=names, options=TIGHT)
     diff = {"u": _rel(one.displacement(), ten.displacement()),
             "lambda": _rel(one.multipliers(), ten.multipliers())}
     for n in names:

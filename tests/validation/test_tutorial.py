@@ -23,6 +23,8 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from signorini.fem.mesh import signed_jacobians
+from signorini.fem.meshfile import read_mesh
 
 TUTORIAL = Path(__file__).resolve().parents[2] / "docs" / "tutorial.md"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```[ \t]*$", re.S | re.M)
@@ -76,11 +78,11 @@ def test_mesh_file_read_with_named_edge_sets(tutorial):
     assert path.read_text().startswith("$MeshFormat\n2.2 0 8\n")
     raw = meshio.read(path)
     assert set(raw.field_data) == {"bottom", "top", "left", "block"}  # gmsh $PhysicalNames
-    mesh = sg.io.read_mesh(path)
+    mesh = read_mesh(path)
     xs, ys = ns["xs"], ns["ys"]
     assert mesh.n_nodes == len(xs) * len(ys)
     assert mesh.n_cells == (len(xs) - 1) * (len(ys) - 1)
-    assert (sg.mesh.signed_jacobians(mesh.nodes, mesh.cells) > 0).all()
+    assert (signed_jacobians(mesh.nodes, mesh.cells) > 0).all()
     # each named line group is a boundary edge set, oriented with the body on its
     # left: the outward normal (dy, -dx) of every top edge points up, of every
     # bottom edge down, of every left edge towards -x

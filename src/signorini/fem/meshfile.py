@@ -7,12 +7,13 @@ import contextlib
 import io as _stdio
 import logging
 import os
+import warnings
 from pathlib import Path
 
 import meshio
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, SignoriniWarning
 from .mesh import Mesh, signed_jacobians
 
 log = logging.getLogger("signorini")
@@ -35,7 +36,7 @@ def _meshio_read(path: Path):
 
     meshio prints its errors and calls ``sys.exit`` when no reader accepts a
     file; here each candidate format is tried with meshio's console output
-    captured (its warnings go to the ``signorini`` logger).
+    captured (what it prints on success becomes a :class:`SignoriniWarning`).
     """
 
     if not path.exists():
@@ -67,7 +68,7 @@ def _meshio_read(path: Path):
             continue
         for line in buf.getvalue().splitlines():
             if line.strip():
-                log.warning("%s: meshio: %s", path, line.strip())
+                _warn(f"{path}: meshio: {line.strip()}")
         return m
     raise InputError(f"{path}: not a readable mesh file ({'; '.join(problems)}); check that the file "
                      f"is a complete mesh in the format of its extension. {_MESH_HINT}")
@@ -147,6 +148,13 @@ def _quad_mesh(path, m):
     return nodes, cells, used, new
 
 
+def _warn(message: str) -> None:
+    """A suspicious mesh file: a :class:`SignoriniWarning` (which a library user can
+    filter) and an INFO line of the ``signorini`` log (which the command shows)."""
+    log.info("warning: %s", message)
+    warnings.warn(message, SignoriniWarning, stacklevel=3)
+
+
 def _add_set(path, name, kind, data, used, new, nodes, boundary, edge_sets, node_sets) -> None:
     """Add one physical group's block (line: an edge set and its node set; vertex: a
     node set) to the sets, checking that lines lie on the boundary."""
@@ -154,8 +162,8 @@ def _add_set(path, name, kind, data, used, new, nodes, boundary, edge_sets, node
         raise InputError(f"{path}: edge set {name!r} has nodes that belong to no "
                          "quadrilateral; put the group on the meshed body's boundary")
     if kind == "vertex" and (~used[data]).any():
-        log.warning("%s: point set %r: %d node(s) belong to no quadrilateral (e.g. an "
-                    "arc centre) and are left out of the set", path, name, int((~used[data]).sum()))
+        _warn(f"{path}: point set {name!r}: {int((~used[data]).sum())} node(s) belong to no "
+              "quadrilateral (e.g. an arc centre) and are left out of the set")
         data = data[used[data]]
         if not data.size:
             return

@@ -170,9 +170,10 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
             {"t": float(s.t), "dt": float(s.dt), "iterations": s.iterations,
              "converged": bool(s.converged), **({"reason": s.reason} if s.reason else {})}
             for s in getattr(sol, "log", [])]
-        summary["warnings"] = _jsonable(list(getattr(sol, "warnings", [])))
+        summary["warnings"] = _jsonable(list(cfg.warnings) + list(getattr(sol, "warnings", [])))
     else:
-        summary.update(increments=0, load_factors=[], newton_iterations=[], newton_log=[], warnings=[])
+        summary.update(increments=0, load_factors=[], newton_iterations=[], newton_log=[],
+                       warnings=list(cfg.warnings))
     summary["contact"], summary["responses"], summary["outputs"] = [], {}, []
     if sol is not None:
         try:

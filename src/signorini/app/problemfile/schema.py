@@ -7,6 +7,7 @@ from __future__ import annotations
 import difflib
 import math
 import tomllib
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ...contact import AugmentedLagrangian, Contact, Coulomb, Penalty
-from ...errors import InputError, UnknownParameterError
+from ...errors import InputError, SignoriniWarning, UnknownParameterError
 from ...fem.loads import Fixed, Pressure, Traction
 from ...materials import LinearElastic, NeoHooke
 from ...fem.mesh import Mesh, rectangle
@@ -57,7 +58,8 @@ class Response:
 @dataclass(frozen=True)
 class RunConfig:
     """How to solve a problem file and what to write (``[solve]``, ``[output]``,
-    ``[[response]]``)."""
+    ``[[response]]``), and what reading it found suspicious (``warnings``, also
+    raised as :class:`~signorini.errors.SignoriniWarning`)."""
     path: Path
     title: str = ""
     steps: int = 1
@@ -67,6 +69,7 @@ class RunConfig:
     vtu: bool = True
     pvd: bool = True
     csv: bool = True
+    warnings: tuple[str, ...] = ()
 
     @property
     def stem(self) -> str:
@@ -97,6 +100,7 @@ class _Reader:
         self.path = path
         self.label = str(path)
         self.params: dict[str, float] = {}
+        self.warnings: list[str] = []  # what reading found suspicious
 
     def error(self, where: str, msg: str, cls=InputError):
         return cls(f"{self.label}: {where} {msg}")
@@ -268,11 +272,19 @@ def _mesh(rd: _Reader, data) -> tuple[Mesh, dict]:
 
         def make():
             try:
-                return read_mesh(f)
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", SignoriniWarning)
+                    mesh = read_mesh(f)
             except InputError as e:
                 raise type(e)(f"{rd.label}: [mesh] file = {name!r}: {e}") from None
+            return mesh, tuple(str(w.message) for w in caught
+                               if issubclass(w.category, SignoriniWarning))
 
-        return (make() if key is None else _intern(key, make)), {}
+        mesh, notes = make() if key is None else _intern(key, make)
+        for message in notes:  # heard again when the file is loaded again
+            rd.warnings.append(message)
+            warnings.warn(message, SignoriniWarning, stacklevel=2)
+        return mesh, {}
     if "type" not in data:
         raise rd.error(where, "missing 'file' or 'type'; write file = \"body.msh\" or "
                               "type = \"rectangle\" with x, y, nx, ny")
@@ -539,7 +551,7 @@ def load(path) -> tuple[Problem, RunConfig]:
     out = _Table(rd, "[output]", doc.get("output", {}), {"vtu", "pvd", "csv"})
     cfg = RunConfig(path=path, title=title, steps=steps, sensitivities=sens, options=opts,
                     responses=responses, vtu=out.boolean("vtu", True), pvd=out.boolean("pvd", True),
-                    csv=out.boolean("csv", True))
+                    csv=out.boolean("csv", True), warnings=tuple(rd.warnings))
     try:
         problem = Problem(mesh=mesh, material=material, params=dict(rd.params), fixed=fixed,
                           loads=loads, contact=contact, shape=shape)
