@@ -21,6 +21,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .. import timing
 from .._jax import to_device
 from .._memo import ObjectMemo
 from .._deprecation import pop_old
@@ -457,8 +458,28 @@ class _LoadPath:
         inc = Increment(t_new, w_trial.copy(), steplog, R[model.prescribed].copy())
         if self.switches is not None:
             inc.switches = self.switches(to_device(w_trial), params, t_new, self.state_n)
+        if self.keep_factors or self.ddm is not None:
+            with timing.phase("sensitivities"):
+                self._derivatives(inc, w_trial, blocks, last_fac, t_new)
+        self.state_n, self.state_dot = model.update_state(inc, params, t_new, self.state_n,
+                                                          self.state_dot, self.names)
+        if self.checkpoint > 1 and sol.increments and len(sol.increments) % self.checkpoint:
+            sol.increments[-1].state = None  # not a checkpoint: recomputed when needed
+        sol.increments.append(inc)
+        self.progress.increment(t_new, steplog)
+        self.inc_checks.after(w_trial, t_new, len(sol.increments))
+        self.t_prev, self.w_prev = self.t, self.w
+        self.w, self.t = w_trial, t_new
+        self.cuts = 0  # max_cuts counts the halvings of one increment
+        if self.dt < self.dt_nominal:
+            self.dt = min(2.0 * self.dt, self.dt_nominal)  # grow back after a successful cut increment
+
+    def _derivatives(self, inc, w_trial, blocks, last_fac, t_new) -> None:
+        """What the derivatives need of a converged increment: its factorisation
+        kept for an adjoint, or the DDM sensitivities."""
+        params = self.params
         t_k = time.perf_counter()
-        K = model.pattern.assemble(blocks) if self.keep_factors or self.ddm is not None else None
+        K = self.model.pattern.assemble(blocks)
         t_k = time.perf_counter() - t_k  # booked with the DDM's factorisation, which it serves
         # the pseudo-loads need no factorisation: computed first, so that each solve
         # follows its factorisation while MKL's threads are awake (DDM.pseudo_loads)
@@ -476,18 +497,6 @@ class _LoadPath:
                                 f"can be computed: {e}") from None
         if self.ddm is not None:
             self._sensitivities(inc, K, loads, last_fac, t_new, t_k)
-        self.state_n, self.state_dot = model.update_state(inc, params, t_new, self.state_n,
-                                                          self.state_dot, self.names)
-        if self.checkpoint > 1 and sol.increments and len(sol.increments) % self.checkpoint:
-            sol.increments[-1].state = None  # not a checkpoint: recomputed when needed
-        sol.increments.append(inc)
-        self.progress.increment(t_new, steplog)
-        self.inc_checks.after(w_trial, t_new, len(sol.increments))
-        self.t_prev, self.w_prev = self.t, self.w
-        self.w, self.t = w_trial, t_new
-        self.cuts = 0  # max_cuts counts the halvings of one increment
-        if self.dt < self.dt_nominal:
-            self.dt = min(2.0 * self.dt, self.dt_nominal)  # grow back after a successful cut increment
 
     def _sensitivities(self, inc, K, loads, last_fac, t_new, t_k) -> None:
         """The DDM of the converged increment: one back-substitution per parameter

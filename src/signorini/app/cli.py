@@ -13,7 +13,7 @@ import logging
 import sys
 import warnings
 
-from .. import progress
+from .. import progress, timing
 from .._version import __version__
 from ..errors import ConvergenceError, SignoriniError, SignoriniWarning
 from . import registry
@@ -64,7 +64,15 @@ class _OnceFilter(logging.Filter):
 
 
 def main(argv=None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
+    # the console command's run counts from the process start (imports included); a
+    # run from Python (a sweep's point) from here
+    with timing.recording(imports_from=timing.process_start() if argv is None else None,
+                          fresh=True):
+        return _main(sys.argv[1:] if argv is None else argv)
+
+
+def _main(argv) -> int:
+    argv = list(argv)
     if argv:
         argv[0], notice = registry.current_name(argv[0])
         if notice:

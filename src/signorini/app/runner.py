@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import timing
 from ..post import files as io
 from ..sensitivity import nonsmooth
 from ..errors import InputError
@@ -49,6 +50,14 @@ def prepare_output(out) -> Path:
 def write_summary(out: Path, summary: dict, solution) -> dict:
     """``summary.json`` of a converged run, with the solve's final list of warnings."""
     summary["warnings"] = list(solution.warnings)
+    return write_summary_json(out, summary)
+
+
+def write_summary_json(out: Path, summary: dict) -> dict:
+    """summary.json, with the run's time split (:mod:`signorini.timing`) if one is kept."""
+    t = timing.current()
+    if t is not None:
+        summary["timings"] = t.split()
     io.write_json(out / "summary.json", summary)
     return summary
 
@@ -99,8 +108,7 @@ def write_partial(out: Path, solution, stem: str, reason: str, extra: dict | Non
             log.warning("warning: could not write the converged increments: %s", e)
     summary["files"] = written
     summary.update(extra or {})
-    io.write_json(out / "summary.json", summary)
-    return summary
+    return write_summary_json(out, summary)
 
 
 def use_solver(solver="auto"):
@@ -117,13 +125,16 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
     ``failed`` summary.json with ``extra`` before re-raising."""
     solver = solve_kwargs.get("solver", "auto")
     extra = {**extra, "solver": getattr(solver, "name", solver)}
+    timing.mark("solve")
     try:
-        return solve(problem, label="base", **solve_kwargs)
+        solution = solve(problem, label="base", **solve_kwargs)
     except ConvergenceError as e:
+        timing.mark("output")
         if e.partial is not None and e.partial.increments:
             io.write_pvd(e.partial, out / f"{stem}.pvd")
         write_partial(out, e.partial, stem, str(e), extra)
         raise
+    return solution
 
 
 def adjoint_report(out: Path, sol, response, names, description: str, solver, ddm: dict) -> dict:

@@ -66,6 +66,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from .. import timing
 from ..linsolve import mkl_threads
 from . import cli
 
@@ -324,9 +325,11 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
     arglists = [(point_args(command, p, out / d, extra_args), str(out / d))
                 for p, d in zip(grid_points, dirs)]
     t0 = time.perf_counter()
+    timing.mark("solve")
     results = map_tasks(run_point, arglists, scheduler=scheduler, n_workers=n_workers,
                         sequential=sequential, client=client)
     wall = time.perf_counter() - t0
+    timing.mark("output")
     header, table = rows(grid_points, results, dirs)
     csv_path = out / "sweep.csv"
     write_csv(csv_path, header, table)
@@ -344,6 +347,8 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
                     "stderr": r["stderr"], "summary": r["summary"]}
                    for k, (p, d, a, r) in enumerate(zip(grid_points, dirs, arglists, results))],
     }
+    if timing.current() is not None:
+        doc["timings"] = timing.current().split()
     with open(out / "sweep.json", "w") as f:
         json.dump(doc, f, indent=1, default=_json_default, allow_nan=True)
     return csv_path

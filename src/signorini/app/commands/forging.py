@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import timing
 from ...design.finite_differences import finite_difference
 from ...errors import InputError
 from ...post import files as io, plots
@@ -78,6 +79,7 @@ def execute(args) -> int:
     return finish(args, s)
 
 
+@timing.recorded
 def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         fd_check: bool = True, solver="auto", force_size: bool = False, rtol: float = 1e-11,
         fd_step: float = 1e-6, adjoint: bool = False) -> dict:
@@ -118,9 +120,11 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     dF = {k: float(val) for k, val in dF.items()}
     adj = None
     if adjoint:
+        timing.mark("sensitivities")
         adj = adjoint_report(out, sol, lambda m: objective(m, lat), names,
                              "F = sum (r_k - r_opt)^2 over the lateral nodes (forging.objective)",
                              solver, dF)
+    timing.mark("output")
     force_fn = die_force(model)
     force = [float(sol.response(force_fn, k, with_sensitivities=False, key=("die-force",))[0])
              for k in range(len(sol.increments))]
@@ -128,8 +132,10 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     x = sol.current()
     vol0, vol1 = body_volume(model, X), body_volume(model, x)
 
+    timing.mark("sensitivities")
     fd, rel = _table1(out, pb, F_fn, names, dF, fd_check, steps=steps, options=opts, solver=solver,
                       rel_step=fd_step)
+    timing.mark("output")
     io.write_pvd(sol, out / "forging.pvd")
 
     _figures(out, sol, X, x, v, F, force)

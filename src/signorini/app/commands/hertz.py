@@ -16,6 +16,7 @@ from ...problems.hertz import (
 from ..options import (
     UNITS, Formatter, coarse_start_option, common_options, finish, fmt_coarse, fmt_fd, nominal_a0,
     parse_sets, with_defaults)
+from ... import timing
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
     use_solver, write_summary)
@@ -69,6 +70,7 @@ def execute(args) -> int:
 VALID_A_OVER_R = 0.3
 
 
+@timing.recorded
 def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         finite_strain: bool = False, steps: int = 1, fd_check: bool = True,
         sensitivities=("R", "E", "P"), options=None, fd_step: float = 1e-4, solver="auto",
@@ -100,6 +102,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": fine_cell_size(pb),
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
+    timing.mark("solve")
     guide, levels = None, []
     skipped = coarse_start_skipped(pb, coarse_start)
     if skipped is None:
@@ -119,12 +122,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     _validity(sol, a_fe, v, pb, zone * analytical(**{k: DEFAULTS[k] for k in ("P", "R", "E", "nu")})["a"],
               checks)
 
+    timing.mark("output")
     _write_fields(out, sol, sensitivities, steps)
 
     ddm_fd = {}
     if fd_check:
+        timing.mark("sensitivities")
         ddm_fd = _ddm_vs_fd(pb, sol, x < 0.9 * an["a"], sensitivities, steps=steps, options=options,
                             rel_step=fd_step, solver=solver, start=sol if coarse_start else None)
+    timing.mark("output")
     _figures(out, x, c, an, v, method, sensitivities)
     summary = summary_header("converged", sol)
     summary.update({

@@ -16,6 +16,7 @@ from ..options import (
     UNITS, Formatter, adjoint_option, coarse_start_option, common_options, finish, fmt_fd,
     nominal_a0, parse_sets, print_adjoint, with_defaults)
 from .hertz import HERTZ_TEXTS
+from ... import timing
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
     summary_header, use_solver, write_summary)
@@ -62,6 +63,7 @@ def execute(args) -> int:
     return finish(args, s)
 
 
+@timing.recorded
 def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd_check: bool = True,
         sensitivities=("R", "mu", "E"), options=None, fd_step: float = 1e-5, solver="auto",
         size: float = BLOCK, zone: float = 1.5, finite_strain: bool = False,
@@ -100,6 +102,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": h,
                  "block_over_a0": size, "zone_over_a0": zone, "refine": refine}
     t0 = clock()
+    timing.mark("solve")
     guide, coarse = None, []
     skipped = hertz.coarse_start_skipped(pb, coarse_start)
     if skipped is None:
@@ -114,22 +117,25 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
 
     adj = None
     if adjoint:
+        timing.mark("sensitivities")
         work = hertz.contact_work(sol.model)
         _, dW = sol.history_response(lambda w, p, t, s: work(w, p, t), key=("contact-work",))
         adj = adjoint_report(out, sol, hertz.contact_work, sensitivities,
                              "contact work W = sum A p_N (g0 - g) at P (hertz.contact_work)", solver,
                              {n: float(d) for n, d in dW.items()})
 
+    timing.mark("output")
     levels = _levels(out, sol, v, sensitivities)
     io.write_pvd(sol, out / "hertz_friction.pvd")
     _figures(out, levels, v, plots)
 
     ddm_fd = {}
     if fd_check:
+        timing.mark("sensitivities")
         ddm_fd = _ddm_vs_fd(pb, levels[-1], [n for n in ("R", "mu") if n in sensitivities], steps=steps,
                             options=options, rel_step=fd_step, solver=solver,
                             start=sol if coarse_start else None)
-
+    timing.mark("output")
     summary = summary_header("converged", sol)
     summary.update({
         "params": v,

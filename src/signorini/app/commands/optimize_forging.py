@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ... import timing
 from ...design.optimize import METHODS, minimize, read_history
 from ...errors import InputError
 from ...post import files as io, plots
@@ -28,7 +29,7 @@ from ...problems.forging_opt import PHI_MIN, START, base_problem, objective_for
 from ..options import (
     Formatter, dask_options, finish, forging_mesh_options, positive_float, positive_int,
     solver_options)
-from ..runner import prepare_output
+from ..runner import prepare_output, write_summary_json
 from ..sweep import map_tasks, single_threaded_env
 
 log = logging.getLogger("signorini")
@@ -240,6 +241,7 @@ def _optimum(d: Path, sol, res, obj, mu: float, t0: float) -> dict:
     }
 
 
+@timing.recorded
 def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50, gradient: str = "ddm",
         resume: bool = False, solver="auto", rtol: float = 1e-11, phi_min: float = PHI_MIN,
@@ -287,10 +289,12 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
     base_problem(tuple(mesh))  # bad mesh input fails here, before any optimisation
     kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
                   gradient=gradient, resume=resume, solver=solver, rtol=rtol, phi_min=phi_min)
+    timing.mark("solve")  # the optimisations (their solves, sensitivities and history files)
     if mapper is None:
         runs = [optimize_mu(out, mu, **kwargs) for mu in mus]
     else:
         runs = mapper(out, mus, kwargs)
+    timing.mark("output")
     _plot_shapes(out / "shapes.png", runs)
     summary = {
         "status": "converged" if all(r["status"] == "converged" for r in runs) else
@@ -303,8 +307,7 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
         "warnings": sorted({w for r in runs for w in r.get("warnings", [])}),
         **(extra_summary or {}),
     }
-    io.write_json(out / "summary.json", summary)
-    return summary
+    return write_summary_json(out, summary)
 
 
 # --------------------------------------------------------------------------- forging optimisation

@@ -15,8 +15,8 @@ from ..._jax import jnp
 from ...algorithms.stepping import solve
 from ...linsolve import check_size
 from ...post import files as io
-from ..runner import prepare_output
-from ..runner import use_solver
+from ... import timing
+from ..runner import prepare_output, use_solver, write_summary_json
 
 
 from .schema import Response, RunConfig, load
@@ -112,6 +112,7 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
         files.extend(f"{cfg.stem}_{i + 1:04d}.vtu" for i in range(len(sol.increments)))
 
 
+@timing.recorded
 def run(path, out, *, solver="auto", progress=None, force_size: bool = False) -> dict:
     """Load a problem file, solve it with DDM sensitivities and write the results.
 
@@ -152,12 +153,14 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
     summary["solver"] = solver.name
     t0 = time.perf_counter()
     error = None
+    timing.mark("solve")
     try:
         sol = solve(problem, steps=cfg.steps, wrt=list(cfg.sensitivities),
                     options=cfg.options, solver=solver, label="base")
     except SolverError as e:  # ConvergenceError keeps the converged increments in .partial
         error, sol = e, getattr(e, "partial", None)
     summary["time_solve_s"] = time.perf_counter() - t0
+    timing.mark("output")
     summary["status"] = "failed" if error is not None else "converged"
     if error is not None:
         summary["reason"] = str(error)
@@ -183,8 +186,7 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
                 raise
             summary["output_error"] = f"{type(e).__name__}: {e}"
     summary["outputs"].insert(0, "summary.json")
-    summary = _jsonable(summary)
-    io.write_json(out / "summary.json", summary)
+    summary = write_summary_json(out, _jsonable(summary))
     if error is not None:
         raise error
     return summary
