@@ -36,6 +36,7 @@ _EVENTS = {
     "/jax/core/compile/jaxpr_trace_duration": "trace",
     "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
     "/jax/core/compile/backend_compile_duration": "xla",
+    "/signorini/program_load": "load",  # signorini._programs.LOAD_EVENT
 }
 
 _SPANS: list[tuple[str, float, float]] = []  # (kind, start, end) in time.time() seconds
@@ -113,8 +114,9 @@ class Timings:
     def split(self, end: float | None = None) -> dict:
         """The parts in seconds: ``total_s`` (from the process start if
         ``imports_from`` was given), ``imports_s``, ``compile_s`` (tracing,
-        lowering and compiling or loading compiled programs, with its parts in
-        ``compile``), one entry per phase (without the compilation in it) and
+        lowering and compiling programs, or loading them from the caches, with its
+        parts in ``compile``: ``trace_s``, ``lower_s``, ``xla_s`` (XLA's compilation
+        or JAX's cache), ``load_s`` (signorini's kept programs) and the counts), one entry per phase (without the compilation in it) and
         ``other_s`` (the rest: building the problem, checks, logging).
 
         Every instant counts once: to compilation if JAX was compiling then,
@@ -138,16 +140,17 @@ class Timings:
         for name, a, b in sorted(phases, key=lambda p: p[1] - p[2]):  # longest first, inner on top
             owner[np.searchsorted(cuts, a):np.searchsorted(cuts, b)] = names.index(name)
         parts = {}
-        for kind in ("trace", "lower", "xla"):
+        for kind in ("trace", "lower", "xla", "load"):
             on = np.zeros(length.size, dtype=bool)
             for k, a, b in spans:
                 if k == kind:
                     on[np.searchsorted(cuts, a):np.searchsorted(cuts, b)] = True
             parts[kind] = on
-        compiling = parts["trace"] | parts["lower"] | parts["xla"]
+        compiling = parts["trace"] | parts["lower"] | parts["xla"] | parts["load"]
         out["compile_s"] = float(length[compiling].sum())
         out["compile"] = {f"{k}_s": float(length[on].sum()) for k, on in parts.items()}
         out["compile"]["programs"] = sum(1 for k, _, _ in spans if k == "xla")
+        out["compile"]["programs_loaded"] = sum(1 for k, _, _ in spans if k == "load")
         for k, name in enumerate(names):
             out[f"{name}_s"] = float(length[(owner == k) & ~compiling].sum())
         out["other_s"] = float(length[(owner < 0) & ~compiling].sum())

@@ -20,7 +20,8 @@ PKG = "signorini"
 #: lowest first; a module may import its own layer or a lower one
 LAYERS = [
     ("core", ["signorini._deprecation", "signorini.interfaces", "signorini._jax", "signorini._memo", "signorini._version", "signorini.errors",
-              "signorini.params", "signorini.progress", "signorini.timing"]),
+              "signorini.params", "signorini.progress", "signorini.timing",
+              "signorini._programs"]),
     ("materials", ["signorini.materials"]),
     ("fem", ["signorini.fem"]),
     ("contact", ["signorini.contact"]),

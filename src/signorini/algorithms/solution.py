@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._jax import jax, to_device
+from .._programs import Program
 from ..errors import InputError
 from .newton import StepLog
 from ..params import as_jax, unit_tangents
@@ -254,10 +255,15 @@ class Solution:
         if key is not None and (key, with_state) in cache:
             val_fn, jvp_fn = cache[(key, with_state)]
         else:
-            val_fn = jax.jit(fn)
-            jvp_fn = jax.jit(jax.vmap(lambda w, p, t, st, a, b, c: jax.jvp(
+            # kept between processes only for the package's own responses, whose code
+            # the programs' key covers; the caller's key names the function (docstring)
+            own = key is not None and getattr(fn, "__module__", "").startswith("signorini.")
+            program = self.model.program if own else (lambda f, name: Program(f, name))
+            name = f"response:{key!r}:{with_state}"
+            val_fn = program(fn, name)
+            jvp_fn = program(jax.vmap(lambda w, p, t, st, a, b, c: jax.jvp(
                 lambda w_, p_, s_: fn(w_, p_, t, *s_), (w, p, st), (a, b, c))[1],
-                (None, None, None, None, 0, 0, 0)))
+                (None, None, None, None, 0, 0, 0)), name + ":jvp")
             if key is not None:
                 cache[(key, with_state)] = (val_fn, jvp_fn)
         extra = (state,) if with_state else ()

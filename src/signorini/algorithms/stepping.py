@@ -11,11 +11,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import hashlib
 import logging
 import threading
 import time
-import types
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 
@@ -23,10 +21,10 @@ import numpy as np
 
 from .. import timing
 from .._jax import to_device
-from .._memo import ObjectMemo
 from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
 from ..linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
+from ..model.identity import structure_key
 from ..model.kernels import Model
 from ..model import checks
 from .newton import NewtonOptions, StepFailure, StepLog, newton
@@ -44,77 +42,10 @@ log = logging.getLogger("signorini")
 _MODELS: OrderedDict = OrderedDict()
 
 
-#: arrays of at least this many bytes keep their digest (by identity) between calls
-_DIGEST_FROM = 1 << 16
-_DIGESTS = ObjectMemo(64)
-
-
-def _digest(a: np.ndarray) -> tuple:
-    """(dtype, shape, BLAKE2 digest of the bytes) of an array; large arrays keep it
-    while the same array object lives (a model key is rebuilt for every solve)."""
-    a = np.asarray(a)
-    memo = a.nbytes >= _DIGEST_FROM
-    d = _DIGESTS.get(a) if memo else None
-    if d is None:
-        d = (a.dtype.str, a.shape, hashlib.blake2b(np.ascontiguousarray(a).view(np.uint8),
-                                                  digest_size=16).digest())
-        if memo:
-            _DIGESTS.put(a, d)
-    return d
-
-
-def _pure_code(code) -> bool:
-    """True if a function's code reads no global or attribute name (nor does any
-    function defined inside it): its result is fixed by its arguments, defaults
-    and closure values, so two such functions with the same code are the same."""
-    return not code.co_names and all(_pure_code(c) for c in code.co_consts
-                                     if isinstance(c, types.CodeType))
-
-
-def _structure(obj, depth: int = 0):
-    """A hashable key of what a model is built from, by content: equal for two
-    problems made by the same code from the same mesh and definitions (a problem
-    built again for other parameter values), so they share one compiled model.
-    Arrays are keyed by their bytes, dataclasses by their fields, a function by
-    its code and closure only when it reads no global name (anything else by its
-    identity: never a false match)."""
-    if depth > 12:
-        return ("id", id(obj))
-    if obj is None or isinstance(obj, (bool, int, float, complex, str, bytes)):
-        return (type(obj).__name__, obj)
-    if isinstance(obj, np.ndarray):
-        return ("array",) + _digest(obj)
-    if isinstance(obj, np.generic):
-        return (type(obj).__name__, obj.item())
-    if isinstance(obj, (tuple, list)):
-        return (type(obj).__name__,) + tuple(_structure(v, depth + 1) for v in obj)
-    if isinstance(obj, Mapping):
-        return ("map",) + tuple(sorted((repr(k), _structure(v, depth + 1)) for k, v in obj.items()))
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return (type(obj),) + tuple((f.name, _structure(getattr(obj, f.name), depth + 1))
-                                    for f in dataclasses.fields(obj))
-    if isinstance(obj, types.FunctionType) and _pure_code(obj.__code__):
-        cells = tuple(_structure(c.cell_contents, depth + 1) for c in obj.__closure__ or ())
-        return ("function", obj.__code__, _structure(obj.__defaults__, depth + 1),
-                _structure(obj.__kwdefaults__, depth + 1), cells)
-    return ("id", id(obj))
-
-
-def structure_key(problem: Problem):
-    """What a problem's model is built from, by content (:func:`_structure`) and
-    the parameter names: equal for two problems that share a compiled model.
-    TypeError if some component cannot be hashed."""
-    key = (_structure((problem.mesh, problem.material, problem.fixed, problem.loads,
-                       problem.contact, problem.shape, problem.shape_nominal,
-                       problem.kinematics, problem.formulation)), tuple(sorted(problem.params)))
-    hash(key)
-    return key
-
-
 def model_for(problem: Problem) -> Model:
     """The compiled model of a problem, reused for problems that differ only in
     parameter values (finite differences, optimisation loops), also when the
-    problem is built again from scratch for new values (:func:`_structure`:
+    problem is built again from scratch for new values (:func:`~signorini.model.identity.structure_key`:
     mesh, definitions and shape fields compared by content: the second build
     neither retraces nor recompiles; docs/theory.md §10.5)."""
     try:

@@ -123,10 +123,10 @@ def _compiled_update(model, s, method):
             return jax.vmap(lambda xs, lk, X0, N0: method.update(
                 xs, geo, model.obstacle_at(s, (X0, N0)), cp, lk))(x, lam_k, *Xs)
 
-        model.cache[("uzawa",)] = (jax.jit(update), jax.jit(jax.vmap(
+        model.cache[("uzawa",)] = (model.program(update, "uzawa_update"), model.program(jax.vmap(
             lambda w, p, t, lk, wd, e, lkd: jax.jvp(
                 lambda w_, p_, l_: update(w_, p_, t, l_), (w, p, lk), (wd, e, lkd))[1],
-            (None, None, None, None, 0, 0, 0))))
+            (None, None, None, None, 0, 0, 0)), "uzawa_update_jvp"))
     return model.cache[("uzawa",)]
 
 

@@ -28,7 +28,8 @@ from ..sensitivity import nonsmooth
 from .._deprecation import pop_old
 from ..sensitivity.adjoint import Adjoint as AdjointEngine
 from ..sensitivity.methods import DDM, Adjoint, FiniteDifferences, from_keywords
-from ..algorithms.stepping import solve, structure_key
+from ..algorithms.stepping import solve
+from ..model.identity import structure_key
 from .finite_differences import finite_difference
 
 #: compiled adjoints kept per model (one per response object)

@@ -10,7 +10,6 @@ import os
 import warnings
 from pathlib import Path
 
-import meshio
 import numpy as np
 
 from ..errors import InputError, SignoriniWarning
@@ -22,12 +21,18 @@ _MESH_HINT = ("signorini reads 2-D quadrilateral meshes, e.g. gmsh .msh (in gmsh
               "then File > Export as .msh)")
 
 
+def _meshio():
+    import meshio  # noqa: PLC0415  (lazy: only a run that reads a mesh file needs it)
+
+    return meshio
+
+
 def _mesh_formats(path: Path) -> list[str]:
     """meshio formats that match the file's extension (longest suffix first, as meshio)."""
     ext, out = "", []
     for suffix in reversed(path.suffixes):
         ext = (suffix + ext).lower()
-        out += meshio.extension_to_filetypes.get(ext, [])
+        out += _meshio().extension_to_filetypes.get(ext, [])
     return out
 
 
@@ -46,7 +51,7 @@ def _meshio_read(path: Path):
         raise InputError(f"{path}: is a directory, not a mesh file; give the path of the mesh file")
     formats = _mesh_formats(path)
     if not formats:
-        known = ", ".join(sorted(meshio.extension_to_filetypes))
+        known = ", ".join(sorted(_meshio().extension_to_filetypes))
         raise InputError(f"{path}: unknown mesh file extension {path.suffix or '(none)'!r}; use a mesh "
                          f"format meshio knows ({known}); {_MESH_HINT}")
     try:
@@ -60,7 +65,7 @@ def _meshio_read(path: Path):
         buf = _stdio.StringIO()
         try:
             with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
-                m = meshio.read(path, file_format=fmt)
+                m = _meshio().read(path, file_format=fmt)
         except (Exception, SystemExit) as e:  # meshio exits when a reader gives up
             detail = str(e) if not isinstance(e, SystemExit) else ""
             detail = " ".join((buf.getvalue() + " " + detail).split()) or type(e).__name__

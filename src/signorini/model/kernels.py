@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fem import element
+from .._programs import Program
 from .._jax import jax, jnp, to_device
 from ..fem.assembly import SparsityPattern
 from ..contact.area import nodal_normals
@@ -40,6 +41,7 @@ from ..contact.obstacles import Linearized
 from .fields import ModelFields
 from .geometry import NODES, ModelGeometry  # noqa: F401  (NODES: re-exported)
 from .history import ModelHistory
+from .identity import stable_digest, structure_key
 from .problem import Problem
 from .stiffness import ModelStiffness
 from .validation import ModelChecks
@@ -111,25 +113,40 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         self._element_names = self.element_parameters()  # what Ke depends on (element_key)
         self._fixed_groups = None  # (distinct Fixed, index of each prescribed DOF's)
         self.pattern = SparsityPattern(layout.block_dofs(), layout.n_dof, layout.free)
-        self.fext = jax.jit(self.external_forces)
+        # content digest of the problem's structure: the key of this model's programs
+        # on disk (None: some component is known only by identity, memory only)
+        try:
+            self.key = stable_digest(structure_key(p))
+        except TypeError:
+            self.key = None
+        program = self.program
+        self.fext = program(self.external_forces, "fext")
         self.cache: dict = {}
-        self._local = jax.jit(self._local_impl)
+        self._local = program(self._local_impl, "local")
         # friction: the case flags and the tangent in one program: one dispatch per Newton
         # evaluation instead of two, which matters on small meshes, where a dispatch
         # costs more than the work (docs/theory.md §10.2)
-        self._local_cases = jax.jit(self._local_cases_impl)
+        self._local_cases = program(self._local_cases_impl, "local_cases")
         self.compiled = Compiled(
-            residual=jax.jit(self.residual), cases=jax.jit(self.cases),
-            status=jax.jit(self.contact_status, static_argnums=4),
-            fields=jax.jit(self.contact_fields, static_argnums=3), update=jax.jit(self.update),
-            switch_fields=jax.jit(self.switch_fields),
-            stiffness=jax.jit(lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1]))
-        self._reference = jax.jit(self._reference_impl)
-        self.prescribed_at = jax.jit(self.prescribed_values)  # one program, not an op per Fixed
-        self._update_jvp = jax.jit(jax.vmap(
+            residual=program(self.residual, "residual"), cases=program(self.cases, "cases"),
+            status=program(self.contact_status, "status", static_argnums=4),
+            fields=program(self.contact_fields, "fields", static_argnums=3),
+            update=program(self.update, "update"),
+            switch_fields=program(self.switch_fields, "switch_fields"),
+            stiffness=program(lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1],
+                              "stiffness"))
+        self._reference = program(self._reference_impl, "reference")
+        self.prescribed_at = program(self.prescribed_values, "prescribed")  # one program, not an op per Fixed
+        self._update_jvp = program(jax.vmap(
             lambda w, p, t, s, wd, e, sd: jax.jvp(lambda w_, p_, s_: self.update(w_, p_, t, s_),
                                                   (w, p, s), (wd, e, sd))[1],
-            (None, None, None, None, 0, 0, 0)))
+            (None, None, None, None, 0, 0, 0)), "update_jvp")
+
+    def program(self, fn, name: str, static_argnums=()) -> Program:
+        """``jax.jit(fn)`` kept between processes under this model's key and ``name``
+        (:class:`signorini._programs.Program`): ``fn`` must be fixed by the model and
+        ``name`` (a function of a caller's own needs a name of its own)."""
+        return Program(fn, name, self.key, static_argnums=static_argnums)
 
     # ----------------------------------------------------- layout delegation
     n_nodes = property(lambda self: self.layout.n_nodes)

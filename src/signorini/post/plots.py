@@ -1,21 +1,37 @@
-"""Figures (matplotlib, Agg backend: no display needed)."""
+"""Figures (matplotlib's Agg canvas: no display needed).
+
+matplotlib is imported when the first figure is drawn, not with this module, and
+without ``pyplot`` (whose backend machinery a file never needs): a run that
+draws no figure does not pay for it.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.collections import PolyCollection
+def subplots(*args, **kwargs):
+    """``(figure, axes)`` as ``pyplot.subplots`` makes them, on an Agg canvas."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415  (lazy: heavy)
+    from matplotlib.figure import Figure  # noqa: PLC0415  (lazy: heavy)
+
+    fig_kw = {k: kwargs.pop(k) for k in ("figsize", "dpi") if k in kwargs}
+    fig = Figure(**fig_kw)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(*args, **kwargs)
+
+
+def save(fig, path) -> Path:
+    """Write ``fig`` to ``path`` (the format from the extension)."""
+    fig.savefig(path)
+    return Path(path)
 
 
 def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "",
            xlim: tuple | None = None) -> Path:
     """Plot curves. Each series: ``{"x", "y", "label", "style"}`` (style optional:
     ``"line"`` or ``"points"``)."""
-    fig, ax = plt.subplots(figsize=(6, 4.2), dpi=120)
+    fig, ax = subplots(figsize=(6, 4.2), dpi=120)
     for s in series:
         if s.get("style", "line") == "points":
             ax.plot(s["x"], s["y"], "o", ms=4, mfc="none", label=s["label"])
@@ -31,16 +47,16 @@ def curves(path, series: list[dict], *, xlabel: str, ylabel: str, title: str = "
     ax.axhline(0, color="k", lw=0.5)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save(fig, path)
 
 
 def meshes(path, panels: list[dict], *, title: str = "") -> Path:
     """Draw quad meshes side by side. Each panel: ``{"x": (n_nodes, 2), "cells":
     (n_cells, 4), "title": str, "color": cell values (optional)}``; equal axes."""
 
-    fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels) + 1, 4.6), dpi=120,
+    from matplotlib.collections import PolyCollection  # noqa: PLC0415  (lazy: heavy)
+
+    fig, axes = subplots(1, len(panels), figsize=(3.2 * len(panels) + 1, 4.6), dpi=120,
                              sharey=True, squeeze=False)
     lim = max(float(p["x"][:, 0].max()) for p in panels) * 1.05
     top = max(float(p["x"][:, 1].max()) for p in panels) * 1.05
@@ -62,6 +78,4 @@ def meshes(path, panels: list[dict], *, title: str = "") -> Path:
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save(fig, path)

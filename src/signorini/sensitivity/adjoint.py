@@ -87,10 +87,10 @@ class Adjoint:
         def init_vjp(p, c):
             return jax.vjp(lambda p_: m.initial_state(jnp.zeros(m.n_dof), p_), p)[1](c)[0]
 
-        self._res_vjp = jax.jit(res_vjp)
-        self._upd_vjp = jax.jit(upd_vjp)
-        self._wp_vjp = jax.jit(wp_vjp)
-        self._init_vjp = jax.jit(init_vjp)
+        self._res_vjp = m.program(res_vjp, "adjoint_residual_vjp")
+        self._upd_vjp = m.program(upd_vjp, "adjoint_update_vjp")
+        self._wp_vjp = m.program(wp_vjp, "adjoint_prescribed_vjp")
+        self._init_vjp = m.program(init_vjp, "adjoint_initial_vjp")
         self._cases = m.compiled.cases
 
     def backward(self, solution, params_ext: dict, selected, *, solver="auto"):

@@ -63,8 +63,9 @@ class DDM:
             return jax.jvp(f, (w, params, state_n), (w_dot, e, state_dot_n))[1]
 
         axes = (None, None, None, None, None, 0, 0, 0)
-        self._wp_dot = jax.jit(jax.vmap(wp_dot, (None, None, 0)))
-        self._pseudo = {part: jax.jit(jax.vmap(lambda *a, part=part: pseudo(*a, part), axes))
+        self._wp_dot = model.program(jax.vmap(wp_dot, (None, None, 0)), "ddm_wp_dot")
+        self._pseudo = {part: model.program(jax.vmap(lambda *a, part=part: pseudo(*a, part), axes),
+                                            f"ddm_pseudo_{part}")
                         for part in ("all", "elements", "rest")}
         # Names whose pseudo-load has no internal-force part can skip the element
         # kernels (the costly half of a pseudo-load): those that enter neither the
@@ -81,15 +82,16 @@ class DDM:
             f = lambda sub: model.residual(w, {**params, **sub}, t, None, None, "elements")
             return jax.jvp(f, ({k: params[k] for k in e_el},), (e_el,))[1]
 
-        self._material_pseudo = jax.jit(jax.vmap(material_pseudo, (None, None, None, 0)))
+        self._material_pseudo = model.program(jax.vmap(material_pseudo, (None, None, None, 0)),
+                                              "ddm_material_pseudo")
         # A linear body's internal forces are K_e(phi) u_e: along a load path their
         # pseudo-load is (dK_e/dphi_k) u_e + K_e du_e/dphi_k, with dK_e/dphi_k
         # computed once per parameter values (``reuse_stiffness``)
-        self._dke_fn = jax.jit(jax.vmap(lambda p, e: jax.jvp(model.compiled.stiffness, (p,), (e,))[1],
-                                        (None, 0)))
+        self._dke_fn = model.program(jax.vmap(lambda p, e: jax.jvp(model.compiled.stiffness, (p,),
+                                                                   (e,))[1], (None, 0)), "ddm_dke")
         self._dke = None  # (key, names, (n, n_cells, 8, 8) NumPy)
         self._proportional = proportional_parameter(model)
-        self._fint = jax.jit(model.linear_forces)
+        self._fint = model.program(model.linear_forces, "linear_forces")
         # the free DOFs are np.nonzero of this mask (dofs.DofLayout): sorted, so the
         # mask visits them in the order of the solution's rows
         self._free_mask = np.zeros(model.n_dof, dtype=bool)

@@ -23,7 +23,6 @@ from ... import timing
 from ...design.optimize import METHODS, minimize, read_history
 from ...errors import InputError
 from ...post import files as io, plots
-from ...post.plots import plt
 from ...problems import forging
 from ...problems.forging_opt import PHI_MIN, START, base_problem, objective_for
 from ..options import (
@@ -121,7 +120,7 @@ def _start(history: Path, resume: bool) -> tuple[np.ndarray, dict]:
 def _plot_convergence(path, rows, mu):
 
     it = [r["iteration"] for r in rows]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.8), dpi=120)
+    fig, (a, b) = plots.subplots(1, 2, figsize=(9, 3.8), dpi=120)
     a.semilogy(it, [max(r["F"], 1e-300) for r in rows], "o-", ms=3)
     a.set_xlabel("iteration")
     a.set_ylabel("F")
@@ -132,14 +131,13 @@ def _plot_convergence(path, rows, mu):
         ax.grid(alpha=0.3, which="both")
     fig.suptitle(f"Forging preform optimisation, mu = {mu:g}")
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    plots.save(fig, path)
 
 
 def _plot_shapes(path, runs: list[dict]):
 
     Z = np.linspace(0.0, forging.H0, 201)
-    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 4.6), dpi=120, sharey=False)
+    fig, (a, b) = plots.subplots(1, 2, figsize=(9, 4.6), dpi=120, sharey=False)
     a.plot(np.full_like(Z, START), Z, "k:", lw=1, label="cylinder (start)")
     for k, s in enumerate(runs):
         if "phi_opt" not in s:
@@ -159,8 +157,7 @@ def _plot_shapes(path, runs: list[dict]):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    plots.save(fig, path)
 
 
 def optimize_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method: str = "BFGS",

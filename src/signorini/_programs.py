@@ -1,0 +1,265 @@
+"""Compiled programs kept between processes.
+
+A :class:`Program` is a ``jax.jit`` whose compiled executables are also kept on
+disk, keyed by what determines them: the owner's content key (a model's
+structure digest: mesh, definitions, parameter names; see
+:mod:`signorini.model.identity`), the program's name, the shapes and types of
+its arguments, the code of this package, the JAX and jaxlib versions and the
+CPU. A second process with the same key loads the executable (a few
+milliseconds) instead of tracing, lowering and compiling it again (or loading
+it from JAX's own compilation cache, which still needs the tracing and
+lowering to find it).
+
+Where: ``$SIGNORINI_CACHE_DIR/programs`` if that variable is set (an empty value
+switches every cache off), else ``$XDG_CACHE_HOME/signorini/programs`` (default
+``~/.cache/signorini/programs``); ``signorini cache --clear`` empties it, as
+does deleting the directory. Every entry carries a checksum of its contents and
+a header naming its key: an entry that does not verify (truncated, corrupted,
+written by other code) is compiled again and overwritten, never used. Entries
+are written to a temporary file and renamed into place, so processes that fill
+the cache at once (a sweep's workers) neither see half-written entries nor
+wait on a lock: the last one to finish a program keeps its copy.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import logging
+import os
+import pickle
+import platform
+import tempfile
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from ._jax import cache_dir, jax
+from jax.core import Tracer
+
+log = logging.getLogger("signorini")
+
+#: layout of an entry on disk; a change makes every older entry a miss
+FORMAT = 1
+_MAGIC = b"signorini-program\n"
+#: JAX monitoring event of the time spent loading an executable from disk
+LOAD_EVENT = "/signorini/program_load"
+
+#: per process: programs compiled here, loaded from disk, entries rebuilt
+STATS: Counter = Counter()
+_LOCK = threading.Lock()
+
+
+def programs_dir() -> Path | None:
+    """The directory of the kept programs (None: caching switched off)."""
+    d = cache_dir()
+    return None if d is None else Path(d).parent / "programs"
+
+
+def _disabled() -> bool:
+    return os.environ.get("SIGNORINI_PROGRAM_CACHE", "1") in ("0", "", "off", "no")
+
+
+@functools.cache
+def code_version() -> str:
+    """Digest of this package's source files: any change of the code is a new version."""
+    root = Path(__file__).resolve().parent
+    h = hashlib.blake2b(digest_size=16)
+    for p in sorted(root.rglob("*.py")):
+        h.update(str(p.relative_to(root)).encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+@functools.cache
+def _platform() -> str:
+    """JAX, jaxlib and the CPU the executables were compiled for."""
+    flags = ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((line for line in f if line.startswith("flags")), "")
+    except OSError:
+        pass
+    import jaxlib  # noqa: PLC0415  (lazy: its version only)
+
+    parts = (jax.__version__, jaxlib.__version__, platform.machine(), platform.processor(),
+             hashlib.blake2b(flags.encode(), digest_size=8).hexdigest(),
+             str(jax.config.jax_enable_x64))
+    return "|".join(parts)
+
+
+#: compile option of the kept programs: ignored by the CPU compiler, but part of the
+#: key of JAX's compilation cache, which therefore never serves them
+_OWN_KEY = {"xla_gpu_deterministic_ops": False}
+_JAX_CACHE_HITS = [0]
+_LISTENING = []
+
+
+def _count_hits(event: str, **_) -> None:
+    if event == "/jax/compilation_cache/cache_hits":
+        _JAX_CACHE_HITS[0] += 1
+
+
+def _no_jax_cache_writes():
+    """A context in which JAX's compilation cache takes no new entries (this
+    thread), or a no-op where this JAX does not offer it."""
+    if not _LISTENING:
+        _LISTENING.append(True)
+        jax.monitoring.register_event_listener(_count_hits)
+    try:
+        from jax._src import config as jax_config  # noqa: PLC0415  (lazy: on a compile only)
+
+        return jax_config.persistent_cache_min_compile_time_secs(float("inf"))
+    except (ImportError, AttributeError, TypeError):
+        return contextlib.nullcontext()
+
+
+def _aval(x):
+    """What a compiled program needs to know of an argument (None: not cacheable)."""
+    if isinstance(x, Tracer):  # inside another program: traced with it
+        return None
+    if isinstance(x, jax.Array):
+        return (x.shape, x.dtype.str, bool(getattr(x, "weak_type", False)))
+    if isinstance(x, np.ndarray):
+        return (x.shape, x.dtype.str, False)
+    if isinstance(x, (bool, int, float, complex)):
+        return ((), type(x).__name__, True)
+    if isinstance(x, np.generic):
+        return ((), x.dtype.str, False)
+    return None
+
+
+class Program:
+    """``jax.jit(fn)`` whose executables are kept in memory and, when ``key`` is
+    given, on disk (module docstring).
+
+    Args:
+        fn: the function (pure; what it closes over must be fixed by ``key``).
+        name: its name within the owner (part of the disk key).
+        key: the owner's content digest (str), or None: memory only.
+        static_argnums: as for ``jax.jit``.
+    """
+
+    def __init__(self, fn, name: str, key: str | None = None, static_argnums=()):
+        self.jit = jax.jit(fn, static_argnums=static_argnums)
+        self.name = name
+        self.key = key
+        self.static = tuple(static_argnums) if isinstance(static_argnums, (tuple, list)) \
+            else (static_argnums,)
+        self._compiled: dict = {}
+
+    def lower(self, *args, **kwargs):
+        return self.jit.lower(*args, **kwargs)
+
+    def __call__(self, *args):
+        dynamic = [a for k, a in enumerate(args) if k not in self.static]
+        leaves, tree = jax.tree_util.tree_flatten(dynamic)
+        avals = tuple(_aval(x) for x in leaves)
+        if None in avals:  # a tracer (called inside another program) or an odd argument
+            return self.jit(*args)
+        sig = (tree, avals, tuple(args[k] for k in self.static))
+        c = self._compiled.get(sig)
+        if c is None:
+            c = self._compiled[sig] = self._build(args, sig)
+        return c(*dynamic)
+
+    # ------------------------------------------------------------ disk cache
+    def _path(self, sig) -> Path | None:
+        d = programs_dir()
+        if self.key is None or d is None or _disabled():
+            return None
+        text = "\n".join((str(FORMAT), self.key, self.name, repr(sig), code_version(), _platform()))
+        return d / (hashlib.blake2b(text.encode(), digest_size=20).hexdigest() + ".bin")
+
+    def _build(self, args, sig):
+        path = self._path(sig)
+        if path is not None:
+            c = self._load(path)
+            if c is not None:
+                return c
+        t0 = time.perf_counter()
+        if path is None:
+            c = self.jit.lower(*args).compile()
+            STATS["compiled"] += 1
+            return c
+        # An executable that JAX loaded from its own cache cannot be serialised again
+        # (its object code is not carried along): a kept program is compiled by XLA
+        # itself, under a key of its own in JAX's cache (an option the CPU compiler
+        # ignores) that is never written there; one served from that cache all the
+        # same is used but not kept
+        hits = _JAX_CACHE_HITS[0]
+        with _no_jax_cache_writes():
+            c = self.jit.lower(*args).compile(compiler_options=_OWN_KEY)
+        STATS["compiled"] += 1
+        log.debug("program %s compiled in %.3f s", self.name, time.perf_counter() - t0)
+        if _JAX_CACHE_HITS[0] == hits:
+            self._save(path, c)
+        return c
+
+    def _header(self) -> bytes:
+        return f"{FORMAT}|{self.name}|{self.key}|{code_version()}|{_platform()}\n".encode()
+
+    def _load(self, path: Path):
+        start = time.time()
+        try:
+            blob = path.read_bytes()
+        except OSError:
+            return None  # not there (the usual miss)
+        try:
+            magic, header, digest, body = blob.split(b"\n", 3)
+            if magic + b"\n" != _MAGIC or header + b"\n" != self._header():
+                raise ValueError("written for another key, code or platform")
+            if hashlib.blake2b(body, digest_size=32).hexdigest().encode() != digest:
+                raise ValueError("checksum mismatch")
+            from jax.experimental import serialize_executable  # noqa: PLC0415  (lazy: on a hit only)
+
+            payload, in_tree, out_tree = pickle.loads(body)
+            c = serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
+        except Exception as e:  # noqa: BLE001  (any bad entry is rebuilt, never used)
+            STATS["rebuilt"] += 1
+            log.info("kept program %s at %s is unusable (%s); compiling it again",
+                     self.name, path, e)
+            return None
+        STATS["loaded"] += 1
+        jax.monitoring.record_event_time_span(LOAD_EVENT, start, time.time())
+        return c
+
+    def _save(self, path: Path, compiled) -> None:
+        try:
+            from jax.experimental import serialize_executable  # noqa: PLC0415  (lazy: on a miss only)
+
+            body = pickle.dumps(serialize_executable.serialize(compiled), protocol=5)
+            digest = hashlib.blake2b(body, digest_size=32).hexdigest().encode()
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".bin")
+            try:
+                with os.fdopen(fd, "wb") as f:
+                    f.write(_MAGIC + self._header() + digest + b"\n" + body)
+                os.replace(tmp, path)  # atomic: readers see the old entry or the whole new one
+            except BaseException:
+                Path(tmp).unlink(missing_ok=True)
+                raise
+            STATS["saved"] += 1
+        except Exception as e:  # noqa: BLE001  (a cache that cannot be written is only slower)
+            log.debug("could not keep program %s: %s", self.name, e)
+
+
+def clear() -> tuple[int, int]:
+    """Delete every kept program; (files, bytes) removed."""
+    d = programs_dir()
+    n = size = 0
+    if d is None or not d.is_dir():
+        return 0, 0
+    for p in d.iterdir():
+        if p.is_file():
+            try:
+                size += p.stat().st_size
+                p.unlink()
+                n += 1
+            except OSError:
+                pass
+    return n, size
