@@ -5,10 +5,11 @@ signorini needs float64 everywhere: Newton is driven to relative residuals of
 steps of 1e-6, neither of which survives float32. Importing this module (which
 ``signorini/__init__.py`` does first) switches JAX to 64-bit mode and the CPU.
 
-Compiled kernels are kept in JAX's persistent compilation cache, so a second
-run of the same problem size skips XLA compilation: in ``$SIGNORINI_CACHE_DIR``
-if set (an empty value switches the cache off), else
-``$XDG_CACHE_HOME/signorini/jax`` (default ``~/.cache/signorini/jax``).
+What signorini compiles is kept between runs under one directory,
+``$SIGNORINI_CACHE_DIR`` if set (an empty value switches every cache off), else
+``$XDG_CACHE_HOME/signorini`` (default ``~/.cache/signorini``): JAX's persistent
+compilation cache in ``jax/`` (set up here) and signorini's own compiled
+programs in ``programs/`` (:mod:`signorini._programs`).
 """
 
 from __future__ import annotations
@@ -22,13 +23,19 @@ import jax  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 
 
-def cache_dir() -> str | None:
-    """Directory of the persistent compilation cache (None: switched off)."""
+def cache_root() -> str | None:
+    """Directory of everything signorini keeps between runs (None: switched off)."""
     d = os.environ.get("SIGNORINI_CACHE_DIR")
     if d is not None:
         return d or None
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "signorini", "jax")
+    return os.path.join(base, "signorini")
+
+
+def cache_dir() -> str | None:
+    """Directory of JAX's persistent compilation cache (None: switched off)."""
+    root = cache_root()
+    return None if root is None else os.path.join(root, "jax")
 
 
 def _enable_cache() -> None:

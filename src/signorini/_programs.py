@@ -13,7 +13,10 @@ lowering to find it).
 Where: ``$SIGNORINI_CACHE_DIR/programs`` if that variable is set (an empty value
 switches every cache off), else ``$XDG_CACHE_HOME/signorini/programs`` (default
 ``~/.cache/signorini/programs``); ``signorini cache --clear`` empties it, as
-does deleting the directory. Every entry carries a checksum of its contents and
+does deleting the directory. Its size is capped (``$SIGNORINI_CACHE_MAX_MB``,
+default 2048): past the cap the entries used least recently are deleted. A
+program larger than a quarter of the cap is not kept (a huge mesh, whose
+compilation is a small part of its run anyway). Every entry carries a checksum of its contents and
 a header naming its key: an entry that does not verify (truncated, corrupted,
 written by other code) is compiled again and overwritten, never used. Entries
 are written to a temporary file and renamed into place, so processes that fill
@@ -38,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._jax import cache_dir, jax
+from ._jax import cache_root, jax
 from jax.core import Tracer
 
 log = logging.getLogger("signorini")
@@ -56,8 +59,8 @@ _LOCK = threading.Lock()
 
 def programs_dir() -> Path | None:
     """The directory of the kept programs (None: caching switched off)."""
-    d = cache_dir()
-    return None if d is None else Path(d).parent / "programs"
+    d = cache_root()
+    return None if d is None else Path(d) / "programs"
 
 
 def _disabled() -> bool:
@@ -225,6 +228,10 @@ class Program:
                      self.name, path, e)
             return None
         STATS["loaded"] += 1
+        try:
+            os.utime(path)  # used now: the last to be evicted
+        except OSError:
+            pass
         jax.monitoring.record_event_time_span(LOAD_EVENT, start, time.time())
         return c
 
@@ -233,6 +240,9 @@ class Program:
             from jax.experimental import serialize_executable  # noqa: PLC0415  (lazy: on a miss only)
 
             body = pickle.dumps(serialize_executable.serialize(compiled), protocol=5)
+            if len(body) > max_bytes() // 4:
+                log.debug("program %s (%.0f MB) is too large to keep", self.name, len(body) / 2**20)
+                return
             digest = hashlib.blake2b(body, digest_size=32).hexdigest().encode()
             path.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".bin")
@@ -244,8 +254,41 @@ class Program:
                 Path(tmp).unlink(missing_ok=True)
                 raise
             STATS["saved"] += 1
+            _evict(path.parent, keep=path)
         except Exception as e:  # noqa: BLE001  (a cache that cannot be written is only slower)
             log.debug("could not keep program %s: %s", self.name, e)
+
+
+def max_bytes() -> int:
+    """The cap of the kept programs' total size (``$SIGNORINI_CACHE_MAX_MB``, default 2048)."""
+    try:
+        return int(float(os.environ.get("SIGNORINI_CACHE_MAX_MB", "2048")) * 2**20)
+    except ValueError:
+        return 2048 * 2**20
+
+
+def _evict(d: Path, keep: Path) -> None:
+    """Delete the entries used least recently (a load touches its entry) until the
+    directory is within :func:`max_bytes`; ``keep`` (just written) stays."""
+    try:
+        entries = []
+        for e in os.scandir(d):
+            if e.is_file() and e.name.endswith(".bin") and not e.name.startswith(".tmp-"):
+                st = e.stat()
+                entries.append((st.st_mtime, st.st_size, e.path))
+    except OSError:
+        return
+    total, cap = sum(size for _, size, _ in entries), max_bytes()
+    for _, size, p in sorted(entries):
+        if total <= cap:
+            break
+        if p != str(keep):
+            try:
+                os.unlink(p)
+                total -= size
+                STATS["evicted"] += 1
+            except OSError:
+                pass
 
 
 def clear() -> tuple[int, int]:

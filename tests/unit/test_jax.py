@@ -12,7 +12,7 @@ def test_persistent_cache_directory(tmp_path):
     env = {**os.environ, "SIGNORINI_CACHE_DIR": str(tmp_path / "c")}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True).stdout.split()
-    assert out == [str(tmp_path / "c")] * 2 and (tmp_path / "c").is_dir()
+    assert out == [str(tmp_path / "c" / "jax")] * 2 and (tmp_path / "c" / "jax").is_dir()
     env["SIGNORINI_CACHE_DIR"] = ""
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True).stdout.split()

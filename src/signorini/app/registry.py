@@ -20,10 +20,11 @@ COMMANDS = {
     "optimize-forging": "signorini.app.commands.optimize_forging",
     "sweep": "signorini.app.commands.sweep",
     "run": "signorini.app.commands.run",
+    "cache": "signorini.app.commands.cache",
 }
 
 #: the commands a sweep can run at every point
-SWEEPABLE = tuple(n for n in COMMANDS if n != "sweep")
+SWEEPABLE = tuple(n for n in COMMANDS if n not in ("sweep", "cache"))
 
 #: old command names, accepted for one release with a notice: old -> new
 RENAMED = {"optimise-forging": "optimize-forging"}
