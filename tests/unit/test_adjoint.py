@@ -51,10 +51,10 @@ def test_adjoint_equals_ddm_hertz(friction):
         pb = with_centre(hertz.hertz_problem(n_fine=12))
         names, steps, incs = ["R", "E", "P", "yc"], 2, "last"
     resp = hertz.contact_work
-    d = gradient(pb, resp, names, mode="ddm", steps=steps, increments=incs, options=TIGHT)
+    d = gradient(pb, resp, names, method=sg.DDM(), steps=steps, increments=incs, options=TIGHT)
     # the backward pass on the same converged path (a new solve would converge to the
     # same point only to rtol, which the ill-conditioned frictional tangent amplifies)
-    a = gradient(pb, resp, names, mode="adjoint", steps=steps, increments=incs, options=TIGHT,
+    a = gradient(pb, resp, names, method=sg.Adjoint(), steps=steps, increments=incs, options=TIGHT,
                  solution=d.solution)
     assert a.value == pytest.approx(d.value, rel=1e-12)
     for n in names:
@@ -68,12 +68,12 @@ def test_adjoint_equals_ddm_forging_and_memory_options():
     resp = lambda m: forging.objective(m, forging.lateral_nodes(pb))  # noqa: E731
     names = list(forging.TABLE1)
     kw = dict(steps=6, options=forging.options(), solver="superlu")  # bitwise repeatable solves
-    d = gradient(pb, resp, names, mode="ddm", **kw)
-    a = gradient(pb, resp, names, mode="adjoint", **kw)
-    c = gradient(pb, resp, names, mode="adjoint", checkpoint=4, factors="store", **kw)
+    d = gradient(pb, resp, names, method=sg.DDM(), **kw)
+    a = gradient(pb, resp, names, method=sg.Adjoint(), **kw)
+    c = gradient(pb, resp, names, method=sg.Adjoint(factors="store", checkpoint=4), **kw)
     assert rel(a.as_array(names), d.as_array(names)) < 1e-10
     # the nodal shape gradient along a design velocity is that parameter's derivative
-    a_nodes = gradient(pb, resp, ["nodes"], mode="adjoint", **kw)["nodes"]
+    a_nodes = gradient(pb, resp, ["nodes"], method=sg.Adjoint(), **kw)["nodes"]
     shape = [f"phi{k}" for k in range(5)]
     along = [float(np.sum(a_nodes * pb.shape[n])) for n in shape]
     assert rel(along, d.as_array(shape)) < 1e-10  # max |difference| / max |dF/dphi_k|
@@ -90,7 +90,7 @@ def test_shape_gradient_of_every_node_equals_ddm_and_fd():
     DDM of one-hot shape fields (exact) and central differences of two solves."""
     base = hertz_friction.hertz_friction_problem(n_fine=12)
     kw = dict(steps=3, increments="all", options=TIGHT)
-    a = gradient(base, hertz.contact_work, ["R", "nodes"], mode="adjoint", **kw)
+    a = gradient(base, hertz.contact_work, ["R", "nodes"], method=sg.Adjoint(), **kw)
     g = a["nodes"]
     assert g.shape == (base.mesh.nodes.shape[0], 2)
     top = base.mesh.node_set("top")
@@ -111,10 +111,10 @@ def test_shape_gradient_of_every_node_equals_ddm_and_fd():
     pb = dataclasses.replace(base, shape=shape, params=params,
                              shape_nominal={**base.shape_nominal, **{f"x{k}": 0.0 for k in range(10)}})
     names = [f"x{k}" for k in range(10)]
-    d = gradient(pb, hertz.contact_work, names, mode="ddm", **kw)
+    d = gradient(pb, hertz.contact_work, names, method=sg.DDM(), **kw)
     adj = np.array([g[n, c] for n, c in zip(sample, comps)])
     assert rel(adj, d.as_array(names)) < 1e-10
-    f = gradient(pb, hertz.contact_work, names, mode="fd", fd_step=1e-5, **kw)
+    f = gradient(pb, hertz.contact_work, names, method=sg.FiniteDifferences(rel_step=1e-5), **kw)
     # central differences of two solves at rtol 1e-11: their round-off falls as 1/step.
     # At step 1e-6 it reached 1.75-2.1e-9 absolute on an interior node, 0.54-1.05 of
     # this bound, varying between identical runs (the threaded factorisation's order
@@ -128,27 +128,27 @@ def test_nodes_gradient_of_rigid_translation_is_consistent():
     """A rigid vertical translation of mesh and obstacle together changes nothing: the
     y-components of the nodal gradient sum with the obstacle-centre derivative to 0."""
     pb = with_centre(hertz.hertz_problem(n_fine=12))
-    a = gradient(pb, hertz.contact_work, ["nodes", "yc"], mode="adjoint", options=TIGHT)
+    a = gradient(pb, hertz.contact_work, ["nodes", "yc"], method=sg.Adjoint(), options=TIGHT)
     total = a["nodes"][:, 1].sum() + a["yc"]
     assert abs(total) < 1e-9 * np.abs(a["nodes"][:, 1]).sum()
 
 
 def test_gradient_input_errors():
     pb = hertz.hertz_problem(n_fine=12)
-    with pytest.raises(InputError, match="mode must be"):
-        gradient(pb, hertz.contact_work, ["R"], mode="backward")
+    with pytest.raises(InputError, match="method must be"):
+        gradient(pb, hertz.contact_work, ["R"], method="backward")
     with pytest.raises(InputError, match="adjoint"):
-        gradient(pb, hertz.contact_work, ["nodes"], mode="ddm")
+        gradient(pb, hertz.contact_work, ["nodes"], method=sg.DDM())
     with pytest.raises(sg.errors.UnknownParameterError, match="Rr"):
         gradient(pb, hertz.contact_work, ["Rr"])
     with pytest.raises(InputError, match="factors"):
-        gradient(pb, hertz.contact_work, ["R"], factors="keep")
+        gradient(pb, hertz.contact_work, ["R"], method=sg.Adjoint(factors="keep"))
     with pytest.raises(InputError, match="increments"):
         gradient(pb, hertz.contact_work, ["R"], increments=[5])
     with pytest.raises(InputError, match="reserved"):
         dataclasses.replace(pb, params={**pb.params, "nodes": 1.0})
     with pytest.raises(InputError, match="checkpoint"):
-        sg.solve(pb, checkpoint=0)
+        sg.solve(pb, method=sg.Adjoint(checkpoint=0))
 
 
 def touching_block(yc: float = 0.0):
@@ -229,8 +229,8 @@ def test_optimisation_objective_with_adjoint_gradient():
     names = ["phi0", "phi2", "mu"]
     resp = lambda m: forging.objective(m, forging.lateral_nodes(pb))  # noqa: E731
     x = np.array([0.72, 0.69, 0.25])
-    evs = [Objective(pb, names, resp, steps=4, options=forging.options(), gradient_mode=mode).evaluate(x)
-           for mode in ("ddm", "adjoint")]
+    evs = [Objective(pb, names, resp, steps=4, options=forging.options(), method=method).evaluate(x)
+           for method in (sg.DDM(), sg.Adjoint())]
     assert evs[1].F == pytest.approx(evs[0].F, rel=1e-13)  # two solves (MKL threads)
     assert rel(evs[1].grad, evs[0].grad) < 1e-10
 
@@ -257,8 +257,8 @@ def test_solution_argument_must_match_and_memory_counts_factors():
     sol = sg.solve(pb, steps=3, options=TIGHT, solver="superlu")  # bitwise repeatable
     with pytest.raises(InputError, match="same mesh, components and parameter values"):
         gradient(pb.with_params(P=3.0), hertz.contact_work, ["R"], solution=sol)
-    a = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, factors="store",
-                 solver="superlu")
+    a = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT,
+                 method=sg.Adjoint(factors="store"), solver="superlu")
     b = gradient(pb, hertz.contact_work, ["R"], steps=3, options=TIGHT, solution=sol)
     assert a["R"] == pytest.approx(b["R"], rel=1e-10)
     # the same problem built again (equal content, other objects) is the same problem
@@ -296,8 +296,8 @@ def test_adjoint_with_prescribed_values_and_a_state_response(friction):
         extra = jnp.sum(state_n[1][0] ** 2) if state_n is not None else 0.0
         return jnp.sum(f["p_N"] * f["area"]) ** 2 + extra
 
-    d = gradient(pb, resp, names, mode="ddm", steps=3, increments="all", options=TIGHT)
-    a = gradient(pb, resp, names, mode="adjoint", steps=3, increments="all", options=TIGHT,
+    d = gradient(pb, resp, names, method=sg.DDM(), steps=3, increments="all", options=TIGHT)
+    a = gradient(pb, resp, names, method=sg.Adjoint(), steps=3, increments="all", options=TIGHT,
                  solution=d.solution)
     assert abs(d["d"]) > 0 and abs(d["s"]) > 0
     assert rel(a.as_array(names), d.as_array(names)) < 1e-10
@@ -317,7 +317,7 @@ def test_user_solvers_forward_and_adjoint():
     from signorini.linsolve import Factor
 
     pb = hertz_friction.hertz_friction_problem(n_fine=12)
-    d = gradient(pb, hertz.contact_work, ["R", "mu"], mode="ddm", steps=2, options=TIGHT)
+    d = gradient(pb, hertz.contact_work, ["R", "mu"], method=sg.DDM(), steps=2, options=TIGHT)
     a = gradient(pb, hertz.contact_work, ["R", "mu"], steps=2, options=TIGHT, solver=_Foreign())
     assert rel(a.as_array(), d.as_array()) < 1e-9
     # a factor written to the solve(b) contract still serves Newton; its transposed
@@ -342,7 +342,7 @@ def test_checkpointed_states_replay_exactly():
     # SuperLU: two solves bit for bit the same (MKL's threads are not), so the
     # replayed states can be compared with stored ones exactly
     full = sg.solve(pb, steps=6, options=TIGHT, solver="superlu")
-    cp = sg.solve(pb, steps=6, options=TIGHT, checkpoint=4, solver="superlu")
+    cp = sg.solve(pb, steps=6, options=TIGHT, method=sg.Adjoint(checkpoint=4), solver="superlu")
     assert [inc.state is not None for inc in cp.increments] == [False, False, False, True, False, True]
     for n in (0, 2, 4, -2):
         a, b = cp.state_after(n), full.state_after(n)

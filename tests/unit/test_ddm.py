@@ -131,8 +131,8 @@ def test_reused_ddm_factorisation_is_exact_to_round_off():
     pb = hertz_friction_problem(refine=0)
     names = ["R", "mu", "E"]
     o = dict(steps=12, wrt=names, options=sg.NewtonOptions(rtol=1e-10))
-    a = sg.solve(pb, ddm_factorization="exact", **o)
-    b = sg.solve(pb, ddm_factorization="reuse", **o)
+    a = sg.solve(pb, method=sg.DDM(factorization="exact"), **o)
+    b = sg.solve(pb, method=sg.DDM(factorization="reuse"), **o)
     assert sum(inc.timing["reused_factorization"] for inc in b.increments) >= 6
     assert not any(inc.timing["reused_factorization"] for inc in a.increments)
     for ia, ib in zip(a.increments, b.increments):

@@ -100,14 +100,118 @@ def test_objective_wrt_and_method(problem):
     d = _no_deprecation(Objective, problem, wrt=names, response=hertz.contact_work, options=TIGHT)
     assert a.gradient_mode == "adjoint" and d.gradient_mode == "ddm"
     assert a.jac(x) == pytest.approx(d.jac(x), rel=1e-9)
-    with pytest.warns(DeprecationWarning, match=r"Objective\(gradient_mode=...\)"):
+    with pytest.warns(DeprecationWarning, match=r"Objective\(gradient_mode=...\)"), \
+            pytest.warns(DeprecationWarning, match=r"Objective\(fd_step=...\)"):
         f = Objective(problem, names, hertz.contact_work, gradient_mode="fd", fd_step=1e-5, options=TIGHT)
     assert f.method == sg.FiniteDifferences(rel_step=1e-5)
     assert f.jac(x) == pytest.approx(d.jac(x), rel=1e-5)
 
 
+# The 0.1 keywords below have no other test (the rest of the suite asks in the 0.2
+# spelling, and pyproject.toml makes our DeprecationWarnings errors elsewhere).
+# SuperLU: two solves of the same problem are the same bit for bit.
+
+
+def test_old_solve_keywords_are_the_method_objects():
+    """solve(ddm_factorization=) is method=DDM(factorization=...); solve(checkpoint=,
+    keep_factors=True) is method=Adjoint(checkpoint=..., factors="store")."""
+    pb = hertz_friction.hertz_friction_problem(n_fine=12)
+    o = dict(steps=4, options=sg.NewtonOptions(rtol=1e-10), solver="superlu")
+    new = _no_deprecation(sg.solve, pb, wrt=["R", "mu"], method=sg.DDM(factorization="reuse"), **o)
+    with pytest.warns(DeprecationWarning, match=r"solve\(ddm_factorization=...\).*DDM\(factorization="):
+        old = sg.solve(pb, wrt=["R", "mu"], ddm_factorization="reuse", **o)
+    reused = [inc.timing["reused_factorization"] for inc in new.increments]
+    assert any(reused) and [inc.timing["reused_factorization"] for inc in old.increments] == reused
+    for a, b in zip(old.increments, new.increments):
+        for n in ("R", "mu"):
+            np.testing.assert_array_equal(a.sens[n], b.sens[n])
+    new = _no_deprecation(sg.solve, pb, method=sg.Adjoint(factors="store", checkpoint=2), **o)
+    with pytest.warns(DeprecationWarning) as caught:
+        old = sg.solve(pb, keep_factors=True, checkpoint=2, **o)
+    assert {str(w.message).split("=")[0] for w in caught if w.category is DeprecationWarning} >= {
+        "signorini.solve(keep_factors", "signorini.solve(checkpoint"}
+    for sol in (old, new):
+        assert all(inc.factor is not None for inc in sol.increments)
+        assert [inc.state is not None for inc in sol.increments] == [False, True, False, True]
+    for a, b in zip(old.increments, new.increments):
+        np.testing.assert_array_equal(a.w, b.w)
+
+
+def test_old_guide_keyword_is_start(problem):
+    """solve(guide=coarse) is start=Start(guide=coarse): the same start, the same path."""
+    o = dict(steps=2, options=TIGHT, solver="superlu")
+    base = _no_deprecation(sg.solve, problem, **o)
+    near = problem.with_params(R=problem.params["R"] * (1 + 1e-6))
+    new = _no_deprecation(sg.solve, near, start=sg.Start(guide=base), **o)
+    with pytest.warns(DeprecationWarning, match=r"solve\(guide=...\).*start=signorini.Start"):
+        old = sg.solve(near, guide=base, **o)
+    assert old.newton_iterations == new.newton_iterations
+    assert new.newton_iterations != _no_deprecation(sg.solve, near, **o).newton_iterations
+    for a, b in zip(old.increments, new.increments):
+        np.testing.assert_array_equal(a.w, b.w)
+
+
+def test_old_gradient_keywords_fd_step_factors_checkpoint(problem):
+    """gradient(mode="fd", fd_step=h) is FiniteDifferences(rel_step=h); gradient(factors=,
+    checkpoint=) is Adjoint(factors=..., checkpoint=...)."""
+    kw = dict(steps=2, options=TIGHT, solver="superlu")
+    new = _no_deprecation(sg.gradient, problem, hertz.contact_work, ["E"],
+                          method=sg.FiniteDifferences(rel_step=1e-3), **kw)
+    with pytest.warns(DeprecationWarning, match=r"gradient\(mode=...\)"), \
+            pytest.warns(DeprecationWarning, match=r"gradient\(fd_step=...\).*rel_step"):
+        old = sg.gradient(problem, hertz.contact_work, ["E"], mode="fd", fd_step=1e-3, **kw)
+    assert old.mode == "fd" and old["E"] == new["E"]
+    # the old step was relative (E = 100: h = 0.1), not the absolute step= (h = 1e-3)
+    assert problem.params["E"] == 100.0
+    absolute = _no_deprecation(sg.gradient, problem, hertz.contact_work, ["E"],
+                               method=sg.FiniteDifferences(step=1e-3), **kw)
+    assert absolute["E"] != old["E"]
+    pb = hertz_friction.hertz_friction_problem(n_fine=12)  # a history state to checkpoint
+    new = _no_deprecation(sg.gradient, pb, hertz.contact_work, ["R", "mu"],
+                          method=sg.Adjoint(factors="store", checkpoint=2), **kw)
+    with pytest.warns(DeprecationWarning, match=r"gradient\(factors=...\)"), \
+            pytest.warns(DeprecationWarning, match=r"gradient\(checkpoint=...\)"):
+        old = sg.gradient(pb, hertz.contact_work, ["R", "mu"], factors="store", checkpoint=2, **kw)
+    assert old.mode == "adjoint"
+    np.testing.assert_array_equal(old.as_array(), new.as_array())
+    assert old.memory == new.memory
+    assert new.memory["factors_kept"] == 2 and new.memory["states_kept"] == 1
+
+
+def test_old_objective_names_keyword_is_wrt(problem):
+    names = ["R", "E"]
+    x = np.array([problem.params[n] for n in names])
+    new = _no_deprecation(Objective, problem, wrt=names, response=hertz.contact_work, options=TIGHT,
+                          solver="superlu")
+    with pytest.warns(DeprecationWarning, match=r"Objective\(names=...\).*wrt="):
+        old = Objective(problem, names=names, response=hertz.contact_work, options=TIGHT,
+                        solver="superlu")
+    assert old.names == new.names == names and old.method == new.method == sg.DDM()
+    np.testing.assert_array_equal(old.jac(x), new.jac(x))
+
+
+def test_old_solve_uzawa_sensitivities_keyword_is_wrt():
+    import dataclasses
+
+    from signorini.algorithms.uzawa import solve_uzawa
+    from signorini.contact.uzawa import UzawaPenalty
+
+    pb = hertz.hertz_problem(n_fine=8, size=8)
+    c = pb.contact[0]
+    pu = dataclasses.replace(pb, contact=(sg.Contact(c.obstacle, c.edges, UzawaPenalty("eps")),))
+    o = dict(options=TIGHT, tol=1e-10, solver="superlu")
+    new = _no_deprecation(solve_uzawa, pu, wrt=["R"], **o)
+    with pytest.warns(DeprecationWarning, match=r"solve_uzawa\(sensitivities=...\).*wrt="):
+        old = solve_uzawa(pu, sensitivities=["R"], **o)
+    assert len(old.sens_history["R"]) == len(new.sens_history["R"]) > 1
+    np.testing.assert_array_equal(old.lam_sens["R"], new.lam_sens["R"])
+    np.testing.assert_array_equal(old.sens["R"], new.sens["R"])
+
+
 @pytest.mark.parametrize("old,new", [("signorini.obstacles", "signorini.contact.obstacles"),
-                                     ("signorini.multilevel", "signorini.algorithms.coarse_to_fine")])
+                                     ("signorini.multilevel", "signorini.algorithms.coarse_to_fine"),
+                                     ("signorini.mesh", "signorini.fem.mesh"),
+                                     ("signorini.cli", "signorini.app.cli")])
 def test_old_module_paths_import_the_new_modules_with_a_warning(old, new):
     sys.modules.pop(old, None)
     with pytest.warns(DeprecationWarning, match=f"{old} moved to {new}"):
@@ -140,3 +244,12 @@ def test_the_old_io_module_holds_the_reader_and_the_writers():
     with pytest.warns(DeprecationWarning, match="signorini.io moved"):
         io = importlib.import_module("signorini.io")
     assert io.read_mesh is sg.read_mesh and io.write_vtu is sg.write_vtu
+
+
+def test_an_old_module_name_as_an_attribute_of_the_package():
+    """``sg.mesh`` (an attribute, no import statement) is the new module, with the warning."""
+    sys.modules.pop("signorini.mesh", None)
+    vars(sg).pop("mesh", None)  # bound by an earlier import of the old path
+    with pytest.warns(DeprecationWarning, match="signorini.mesh moved to signorini.fem.mesh"):
+        mod = sg.mesh
+    assert mod is importlib.import_module("signorini.fem.mesh")

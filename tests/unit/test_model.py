@@ -90,8 +90,8 @@ def test_element_stiffness_kept_while_the_element_parameters_are():
     # model's w from the fresh one's by round-off: 0.1-1.03e-12 relative over runs,
     # depending on the threaded factorisation's order of operations and on the
     # rounding of the check's product; with SuperLU the two are identical.
-    kw = {"steps": 3, "sensitivities": ["E", "nu", "mu", "R"], "solver": "superlu"}
-    names = kw["sensitivities"]  # dK_e/dphi kept for nu (E's is K_e / E)
+    kw = {"steps": 3, "wrt": ["E", "nu", "mu", "R"], "solver": "superlu"}
+    names = kw["wrt"]  # dK_e/dphi kept for nu (E's is K_e / E)
     pb = hertz_friction_problem(n_fine=12)
     m = model_for(pb)
     sg.solve(pb, **kw)

@@ -88,7 +88,7 @@ def _csv(path):
 @pytest.fixture(autouse=True)
 def _quiet():
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # coarse-mesh warnings of the solver
+        warnings.simplefilter("ignore", sg.SignoriniWarning)  # coarse-mesh warnings of the solver
         yield
 
 

@@ -45,8 +45,8 @@ def test_initial_guess_is_checked():
             sg.solve(pb, start=np.zeros(3), initial=np.zeros(3))
     with pytest.raises(sg.InputError, match="predictor"):
         sg.NewtonOptions(predictor="quadratic")
-    with pytest.raises(sg.InputError, match="ddm_factorization"):
-        sg.solve(pb, ddm_factorization="stale")
+    with pytest.raises(sg.InputError, match=r"DDM\(factorization=...\) must be"):
+        sg.solve(pb, method=sg.DDM(factorization="stale"))
 
 
 def test_until_stops_the_path_with_nominal_increments():

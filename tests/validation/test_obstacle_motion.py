@@ -234,11 +234,11 @@ def test_parameters_of_the_motion_are_design_variables(kin):
         contact=(sg.Contact(ob, "top", _law("coulomb"), kinematics=kin),))
     names = ["d", "v", "R", "mu"]
     kw = dict(steps=3, options=TIGHT)
-    ddm = sg.gradient(pb, _force_response, names, mode="ddm", **kw)
-    adj = sg.gradient(pb, _force_response, names, mode="adjoint", solution=ddm.solution, **kw)
+    ddm = sg.gradient(pb, _force_response, names, method=sg.DDM(), **kw)
+    adj = sg.gradient(pb, _force_response, names, method=sg.Adjoint(), solution=ddm.solution, **kw)
     status = ddm.solution.contact()["status"]
     assert (status == "stick").sum() >= 2 and (status == "slip").sum() >= 2, status
-    fd = sg.gradient(pb, _force_response, names, mode="fd", **kw)
+    fd = sg.gradient(pb, _force_response, names, method=sg.FiniteDifferences(), **kw)
     for n in names:
         assert abs(adj[n] - ddm[n]) <= 1e-10 * abs(ddm[n]), (n, adj[n], ddm[n])
         assert abs(fd[n] - ddm[n]) <= 1e-6 * abs(ddm[n]), (n, fd[n], ddm[n])
