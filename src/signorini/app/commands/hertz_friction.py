@@ -115,15 +115,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
                           start=guide)
     t_solve = clock() - t0
 
-    adj = None
-    if adjoint:
-        timing.mark("sensitivities")
-        work = hertz.contact_work(sol.model)
-        _, dW = sol.history_response(lambda w, p, t, s: work(w, p, t), key=("contact-work",))
-        adj = adjoint_report(out, sol, hertz.contact_work, sensitivities,
-                             "contact work W = sum A p_N (g0 - g) at P (hertz.contact_work)", solver,
-                             {n: float(d) for n, d in dW.items()})
-
+    adj = _adjoint(out, sol, sensitivities, solver) if adjoint else None
     timing.mark("output")
     levels = _levels(out, sol, v, sensitivities)
     io.write_pvd(sol, out / "hertz_friction.pvd")
@@ -155,6 +147,17 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
+
+
+def _adjoint(out, sol, sensitivities, solver) -> dict:
+    """The adjoint gradient of the contact work at P next to its DDM gradient
+    (``summary.json`` ``adjoint``, ``shape_gradient.csv``)."""
+    timing.mark("sensitivities")
+    work = hertz.contact_work(sol.model)
+    _, dW = sol.history_response(lambda w, p, t, s: work(w, p, t), key=("contact-work",))
+    return adjoint_report(out, sol, hertz.contact_work, sensitivities,
+                          "contact work W = sum A p_N (g0 - g) at P (hertz.contact_work)", solver,
+                          {n: float(d) for n, d in dW.items()})
 
 
 def _levels(out, sol, v, sensitivities) -> list[dict]:
