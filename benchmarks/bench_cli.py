@@ -23,14 +23,18 @@ first ``examples/*.toml`` (skipped with a note if there is none).
 0.2, 0.3, up to 50 iterations, each evaluation a 50-increment forging solve
 with DDM): by far the longest row (``--timeout`` stops a run).
 
-Two states of the persistent JAX compilation cache (``SIGNORINI_CACHE_DIR``,
-see ``signorini/_jax.py``), both measured:
+Two states of the caches of compiled programs (``SIGNORINI_CACHE_DIR``: JAX's
+compilation cache and signorini's kept programs, see ``signorini/_jax.py`` and
+``signorini/_programs.py``), both measured:
 
 * ``empty``: ``SIGNORINI_CACHE_DIR`` a fresh, empty directory for every run
   (every kernel traced and compiled by XLA);
 * ``filled``: one directory per command, filled by one untimed warm-up run of
-  the same command line, shared by the timed runs (tracing still happens,
-  XLA compilation is read from the cache).
+  the same command line, shared by the timed runs (the kept programs are
+  loaded; what is not kept is traced and read from JAX's cache).
+
+``--signorini`` runs another installation or checkout (e.g. a script running
+``PYTHONPATH=OLD/src python3 -m signorini.app.cli "$@"``) for before/after tables.
 
 Other caches are not controlled: Python's bytecode and the OS's file cache are
 warm after the first run of the benchmark.
