@@ -1,6 +1,7 @@
 """Compiled programs kept between processes (signorini._programs): the same
 results with and without them, bad entries rebuilt, concurrent writers safe."""
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -150,3 +151,23 @@ def test_cache_command_shows_and_clears(cache, capsys):
     assert not cache.exists() or not list(cache.glob("*.bin"))
     _, c = _solve()  # compiled again after clearing
     assert c["loaded"] == 0 and c["compiled"] > 0
+
+
+def test_the_digest_does_not_depend_on_where_the_source_lives():
+    """The same definitions loaded from two paths (two checkouts of a project) share
+    their kept programs; another definition does not."""
+    from signorini.model.identity import stable_digest, structure_key
+
+    source = "load = lambda p: 2.0 * p['P']\n"
+    other = "load = lambda p: 3.0 * p['P']\n"
+
+    def problem(src, path):
+        ns = {}
+        exec(compile(src, path, "exec"), ns)
+        pb = hertz.hertz_problem(n_fine=8, size=8)
+        return dataclasses.replace(pb, loads=(sg.Pressure("top", ns["load"]),))
+
+    a = stable_digest(structure_key(problem(source, "/home/a/project/loads.py")))
+    b = stable_digest(structure_key(problem(source, "/srv/b/checkout/loads.py")))
+    c = stable_digest(structure_key(problem(other, "/home/a/project/loads.py")))
+    assert a is not None and a == b and a != c

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import marshal
 import types
 from collections.abc import Mapping
 
@@ -99,8 +98,11 @@ def stable_digest(key) -> str | None:
             return ok
         if isinstance(k, type):
             h.update(f"type:{k.__module__}.{k.__qualname__};".encode())
-        elif isinstance(k, types.CodeType):
-            h.update(b"code:" + marshal.dumps(k) + b";")
+        elif isinstance(k, types.CodeType):  # what it does, not where its file is
+            h.update(b"code:")
+            return feed((k.co_code, k.co_consts, k.co_names, k.co_varnames, k.co_freevars,
+                         k.co_cellvars, k.co_argcount, k.co_posonlyargcount,
+                         k.co_kwonlyargcount, k.co_flags))
         elif isinstance(k, bytes):
             h.update(b"bytes:" + k + b";")
         elif k is None or isinstance(k, (bool, int, float, complex, str)):
@@ -110,3 +112,4 @@ def stable_digest(key) -> str | None:
         return True
 
     return h.hexdigest() if feed(key) else None
+

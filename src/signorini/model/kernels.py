@@ -70,7 +70,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     prescribed values), :class:`~signorini.model.validation.ModelChecks`
     (parameter checks), :class:`~signorini.model.history.ModelHistory` (history
     update and its sensitivity), :class:`~signorini.model.stiffness.ModelStiffness`
-    (a linear body's kept element stiffness) and
+    (a linear body's kept element stiffness, the tangent's analysis values) and
     :class:`~signorini.model.fields.ModelFields` (post-processing); this module
     holds the residual, the contact inputs and the tangent.
 
@@ -355,42 +355,6 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             R, blocks = self._local(w, params, t, state_n, None, Ke)
         head = [] if Ke_np is None else [Ke_np]
         return np.asarray(R), head + [np.asarray(b) for b in blocks]
-
-    def analysis_tangent(self, params):
-        """Free-free tangent at the reference state with every contact node closed
-        (and sticking), the values a sparse solver should analyse the pattern with:
-        the pivots it then chooses suit any active set (docs/theory.md §10.1).
-
-        Each normal multiplier is set just past the switch, lam_N = -eps_N g - delta
-        (lam^_N = -delta, delta = 1e-9 (1 + max eps_N |g|)): closed, with a
-        negligible curvature term lam^_N d2g of finite kinematics. None if the
-        model has no multipliers or a normal multiplier row does not come out
-        closed (zero diagonal)."""
-        lam_n = [s.lam_offset + s.n_mult * np.arange(s.nodes.size) for s in self.surfaces if s.n_mult]
-        if not lam_n:
-            return None
-        w = np.zeros(self.n_dof)
-        for i, s in enumerate(self.surfaces):
-            if s.n_mult:
-                eps = float(np.ravel(s.contact.method.row_scale(s.contact.method.values(params)))[0])
-                g = np.asarray(self.compiled.fields(to_device(w), params, 0.0, i)["gap"])
-                lam = np.zeros((s.nodes.size, s.n_mult))
-                lam[:, 0] = -eps * g - 1e-9 * (1.0 + eps * float(np.max(np.abs(g))))
-                w[s.lam_offset: s.lam_offset + lam.size] = lam.ravel()
-        state_0 = self.initial_state(np.zeros(self.n_dof), params)
-        _, blocks = self.local_tangents(w, params, 0.0, state_0)
-        K = self.pattern.assemble(blocks)
-        if not np.all(K.diagonal()[np.searchsorted(self.free, np.concatenate(lam_n))] == 0.0):
-            return None
-        return K
-
-    def convergence_weights(self, params) -> np.ndarray:
-        """(n_dof,) row weights giving every residual row force units."""
-        wts = np.ones(self.n_dof)
-        for s in self.surfaces:
-            cp = s.contact.method.values(params)
-            wts[s.lam_dofs] = np.asarray(s.contact.method.row_scale(cp), dtype=float)  # scalar or (m,)
-        return wts
 
 
 

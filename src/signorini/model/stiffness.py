@@ -1,4 +1,6 @@
-"""The constant element stiffness of a linear body, kept per parameter set.
+"""The constant element stiffness of a linear body, kept per parameter set, and
+what the linear solvers are told of the tangent (its analysis values, the
+residual's row weights).
 
 A part of :class:`signorini.model.kernels.Model` (a mixin: its methods use the
 model's layout, kernels and compiled programs)."""
@@ -7,11 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jax import jnp
+from .._jax import jnp, to_device
 
 
 class ModelStiffness:
-    """The constant element stiffness of a linear body, kept per parameter set."""
+    """The constant element stiffness of a linear body, kept per parameter set;
+    the tangent's analysis values and row weights."""
 
     def element_parameters(self) -> set[str] | None:
         """Names on which the internal forces depend through the material or the
@@ -44,3 +47,39 @@ class ModelStiffness:
         stiffness Ke (n_cells, 8, 8) (traceable)."""
         re = jnp.einsum("eij,ej->ei", Ke, w[self.edofs])
         return jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
+
+    def analysis_tangent(self, params):
+        """Free-free tangent at the reference state with every contact node closed
+        (and sticking), the values a sparse solver should analyse the pattern with:
+        the pivots it then chooses suit any active set (docs/theory.md §10.1).
+
+        Each normal multiplier is set just past the switch, lam_N = -eps_N g - delta
+        (lam^_N = -delta, delta = 1e-9 (1 + max eps_N |g|)): closed, with a
+        negligible curvature term lam^_N d2g of finite kinematics. None if the
+        model has no multipliers or a normal multiplier row does not come out
+        closed (zero diagonal)."""
+        lam_n = [s.lam_offset + s.n_mult * np.arange(s.nodes.size) for s in self.surfaces if s.n_mult]
+        if not lam_n:
+            return None
+        w = np.zeros(self.n_dof)
+        for i, s in enumerate(self.surfaces):
+            if s.n_mult:
+                eps = float(np.ravel(s.contact.method.row_scale(s.contact.method.values(params)))[0])
+                g = np.asarray(self.compiled.fields(to_device(w), params, 0.0, i)["gap"])
+                lam = np.zeros((s.nodes.size, s.n_mult))
+                lam[:, 0] = -eps * g - 1e-9 * (1.0 + eps * float(np.max(np.abs(g))))
+                w[s.lam_offset: s.lam_offset + lam.size] = lam.ravel()
+        state_0 = self.initial_state(np.zeros(self.n_dof), params)
+        _, blocks = self.local_tangents(w, params, 0.0, state_0)
+        K = self.pattern.assemble(blocks)
+        if not np.all(K.diagonal()[np.searchsorted(self.free, np.concatenate(lam_n))] == 0.0):
+            return None
+        return K
+
+    def convergence_weights(self, params) -> np.ndarray:
+        """(n_dof,) row weights giving every residual row force units."""
+        wts = np.ones(self.n_dof)
+        for s in self.surfaces:
+            cp = s.contact.method.values(params)
+            wts[s.lam_dofs] = np.asarray(s.contact.method.row_scale(cp), dtype=float)  # scalar or (m,)
+        return wts
