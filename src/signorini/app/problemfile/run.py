@@ -134,6 +134,7 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
     """
 
 
+    t_start = time.perf_counter()
     problem, cfg = load(path)
     out = prepare_output(out)
     n_contact = sum(len(np.unique(problem.mesh.edge_set(c.edges))) * c.method.n_multipliers
@@ -186,6 +187,7 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
                 raise
             summary["output_error"] = f"{type(e).__name__}: {e}"
     summary["outputs"].insert(0, "summary.json")
+    summary["time_wall_s"] = time.perf_counter() - t_start
     summary = write_summary_json(out, _jsonable(summary))
     if error is not None:
         raise error
