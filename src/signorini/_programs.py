@@ -16,9 +16,10 @@ switches every cache off), else ``$XDG_CACHE_HOME/signorini/programs`` (default
 does deleting the directory. Its size is capped (``$SIGNORINI_CACHE_MAX_MB``,
 default 2048): past the cap the entries used least recently are deleted. A
 program larger than a quarter of the cap is not kept (a huge mesh, whose
-compilation is a small part of its run anyway). Every entry carries a checksum of its contents and
-a header naming its key: an entry that does not verify (truncated, corrupted,
-written by other code) is compiled again and overwritten, never used. Entries
+compilation is a small part of its run anyway). Every entry carries a checksum
+of its contents and a header naming its key: an entry that does not verify
+(truncated, corrupted, written by other code) is compiled again and
+overwritten, never used. Entries
 are written to a temporary file and renamed into place, so processes that fill
 the cache at once (a sweep's workers) neither see half-written entries nor
 wait on a lock: the last one to finish a program keeps its copy.
@@ -34,7 +35,6 @@ import os
 import pickle
 import platform
 import tempfile
-import threading
 import time
 from collections import Counter
 from pathlib import Path
@@ -52,9 +52,8 @@ _MAGIC = b"signorini-program\n"
 #: JAX monitoring event of the time spent loading an executable from disk
 LOAD_EVENT = "/signorini/program_load"
 
-#: per process: programs compiled here, loaded from disk, entries rebuilt
+#: per process: programs compiled here, loaded from disk, saved, rebuilt, evicted
 STATS: Counter = Counter()
-_LOCK = threading.Lock()
 
 
 def programs_dir() -> Path | None:
@@ -289,20 +288,3 @@ def _evict(d: Path, keep: Path) -> None:
                 STATS["evicted"] += 1
             except OSError:
                 pass
-
-
-def clear() -> tuple[int, int]:
-    """Delete every kept program; (files, bytes) removed."""
-    d = programs_dir()
-    n = size = 0
-    if d is None or not d.is_dir():
-        return 0, 0
-    for p in d.iterdir():
-        if p.is_file():
-            try:
-                size += p.stat().st_size
-                p.unlink()
-                n += 1
-            except OSError:
-                pass
-    return n, size

@@ -116,8 +116,9 @@ class Timings:
         ``imports_from`` was given), ``imports_s``, ``compile_s`` (tracing,
         lowering and compiling programs, or loading them from the caches, with its
         parts in ``compile``: ``trace_s``, ``lower_s``, ``xla_s`` (XLA's compilation
-        or JAX's cache), ``load_s`` (signorini's kept programs) and the counts), one entry per phase (without the compilation in it) and
-        ``other_s`` (the rest: building the problem, checks, logging).
+        or JAX's cache), ``load_s`` (signorini's kept programs) and the counts), one
+        entry per phase (without the compilation in it) and ``other_s`` (the rest:
+        building the problem, checks, logging).
 
         Every instant counts once: to compilation if JAX was compiling then,
         else to the innermost phase open then, else to ``other_s``."""

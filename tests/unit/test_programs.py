@@ -3,6 +3,7 @@ results with and without them, bad entries rebuilt, concurrent writers safe."""
 
 import dataclasses
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -128,10 +129,10 @@ def test_the_cache_keeps_to_its_size(cache, monkeypatch):
     _programs._evict(cache, keep=cache / "e0.bin")
     assert sorted(p.name for p in cache.glob("*.bin")) == ["e0.bin", "e4.bin", "e5.bin"]
     assert _programs.STATS["evicted"] - before == 3
-    _programs.clear()
+    shutil.rmtree(cache)
     _, c1 = _solve()
     sizes = sorted(p.stat().st_size for p in cache.glob("*.bin"))
-    _programs.clear()
+    shutil.rmtree(cache)
     cap = 4 * (sizes[-2] - 1000)  # the two largest programs are above a quarter of it
     monkeypatch.setenv("SIGNORINI_CACHE_MAX_MB", str(cap / 2**20))
     _, c2 = _solve()

@@ -57,7 +57,7 @@ def model_for(problem: Problem) -> Model:
         _MODELS.move_to_end(key)
         m.check_values(problem.params)  # expressions of this problem's values (built once per model)
         return m
-    m = _MODELS[key] = Model(problem)
+    m = _MODELS[key] = Model(problem, structure=key)
     if len(_MODELS) > 8:
         _MODELS.popitem(last=False)
     return m

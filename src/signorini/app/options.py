@@ -143,6 +143,11 @@ def solver_options(p):
                         "(MKL, installed with signorini on x86-64), else superlu (SciPy)")
     p.add_argument("--force-size", action="store_true",
                    help="run even if the estimated memory exceeds what is available")
+    verbosity_options(p)
+
+
+def verbosity_options(p):
+    """-q / -v: what the log shows (every command has them: the entry point reads them)."""
     v = p.add_mutually_exclusive_group()
     v.add_argument("-q", "--quiet", action="store_true", help="print only errors and the result line")
     v.add_argument("-v", "--verbose", action="store_true",

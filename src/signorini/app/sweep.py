@@ -347,8 +347,9 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
                     "stderr": r["stderr"], "summary": r["summary"]}
                    for k, (p, d, a, r) in enumerate(zip(grid_points, dirs, arglists, results))],
     }
-    if timing.current() is not None:
-        doc["timings"] = timing.current().split()
+    t = timing.current()
+    if t is not None:
+        doc["timings"] = t.split()
     with open(out / "sweep.json", "w") as f:
         json.dump(doc, f, indent=1, default=_json_default, allow_nan=True)
     return csv_path

@@ -74,6 +74,10 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     :class:`~signorini.model.fields.ModelFields` (post-processing); this module
     holds the residual, the contact inputs and the tangent.
 
+    ``structure``: the problem's :func:`~signorini.model.identity.structure_key`
+    when the caller has it already (:func:`signorini.algorithms.stepping.model_for`),
+    so that it is not computed twice.
+
     Besides those of its :class:`~signorini.model.dofs.DofLayout` (``layout``):
 
     Attributes:
@@ -85,7 +89,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         compiled: the compiled programs solvers and outputs call (:class:`Compiled`).
     """
 
-    def __init__(self, problem: Problem):
+    def __init__(self, problem: Problem, structure=None):
         self.problem = p = problem
         self.layout = layout = DofLayout(p)
         self._check_names()
@@ -116,7 +120,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         # content digest of the problem's structure: the key of this model's programs
         # on disk (None: some component is known only by identity, memory only)
         try:
-            self.key = stable_digest(structure_key(p))
+            self.key = stable_digest(structure_key(p) if structure is None else structure)
         except TypeError:
             self.key = None
         program = self.program

@@ -6,7 +6,7 @@ import shutil
 from pathlib import Path
 
 from ... import _jax, _programs
-from ..options import Formatter
+from ..options import Formatter, verbosity_options
 
 NAME = "cache"
 
@@ -23,14 +23,7 @@ def add_parser(sub) -> None:
                     "or damaged entry is detected and compiled again, never used: clearing is "
                     "only needed to free disk space.")
     c.add_argument("--clear", action="store_true", help="delete every cached program")
-    c.add_argument("-q", "--quiet", action="store_true", help=argparse_suppress())
-    c.add_argument("-v", "--verbose", action="store_true", help=argparse_suppress())
-
-
-def argparse_suppress():
-    import argparse  # noqa: PLC0415  (lazy: only for the hidden options' help)
-
-    return argparse.SUPPRESS
+    verbosity_options(c)
 
 
 def _size(d: Path | None) -> tuple[int, int]:
