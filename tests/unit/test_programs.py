@@ -172,3 +172,27 @@ def test_the_digest_does_not_depend_on_where_the_source_lives():
     b = stable_digest(structure_key(problem(source, "/srv/b/checkout/loads.py")))
     c = stable_digest(structure_key(problem(other, "/home/a/project/loads.py")))
     assert a is not None and a == b and a != c
+
+
+def test_one_program_per_kind_serves_every_mesh_size(cache):
+    """The element and contact kernels are compiled for their kind, not for a
+    mesh: solving (with sensitivities) on a second, finer mesh builds none of
+    the kind programs again, neither traced nor compiled nor loaded."""
+    from signorini.model.chunks import Chunked
+
+    def kind_programs():
+        return {(type(k).__name__, spec): len(p._compiled)
+                for k in Chunked._shared_kinds.values() for spec, p in k._programs.items()}
+
+    coarse, fine = hertz.hertz_problem(n_fine=8, size=8), hertz.hertz_problem(n_fine=12, size=8)
+    assert fine.mesh.cells.shape[0] > coarse.mesh.cells.shape[0]
+    sg.solve(coarse, steps=2, wrt=["R", "E"])
+    first = kind_programs()
+    assert {name for name, _ in first} == {"CellKernels", "NodeKernels"}
+    before = _programs.STATS["compiled"] + _programs.STATS["loaded"]
+    sol = sg.solve(fine, steps=2, wrt=["R", "E"])
+    assert kind_programs() == first
+    # what the second mesh did build: its own small programs (geometry, loads,
+    # prescribed values, the DDM's contact pseudo-load), none of the kernels
+    assert _programs.STATS["compiled"] + _programs.STATS["loaded"] - before <= 8
+    assert np.all(np.isfinite(sol.increments[-1].sens["R"]))

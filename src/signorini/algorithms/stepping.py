@@ -327,7 +327,7 @@ class _LoadPath:
         w_trial = w.copy()
         if model.prescribed.size:
             w_trial[model.prescribed] = np.asarray(model.prescribed_at(params, t_new))
-        ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t_new))[model.free]))
+        ref = float(np.linalg.norm(np.asarray(model.external_force_vector(params, t_new))[model.free]))
         first = not self.sol.increments and t == 0.0
         started = first and self.initial is not None
         # a coarser solve of the same path: w_n + P(w^c_{n+1} - w^c_n)

@@ -153,7 +153,7 @@ class _OuterLoop:
         model, params, out = self.model, self.params, self.out
         if model.prescribed.size:
             self.w[model.prescribed] = np.asarray(model.prescribed_at(params, t))
-        ref = float(np.linalg.norm(np.asarray(model.fext(model.reference(params), params, t))[model.free]))
+        ref = float(np.linalg.norm(np.asarray(model.external_force_vector(params, t))[model.free]))
         newton_its, self.hist = 0, {n: [] for n in self.names}
         for k in range(1, self.max_outer + 1):
             state = (self.zeros_w, (self.lam,))

@@ -20,12 +20,13 @@ class ModelHistory:
     """The history of path-dependent problems: update, initial state, sensitivities."""
 
     # ---------------------------------------------------------------- history
-    def update(self, w, params, t, state_n):
+    def update(self, w, params, t, state_n, part: str = "all"):
         """Pure history update after convergence at t (docs/theory.md §1, §3):
         (w, contact history, material history). Contact: the slip coordinate
         s = s(x_S) of every node of a friction surface on the obstacle at t
         (linearised obstacle in small-strain runs). Material: the return map at
-        every Gauss point from the history of the previous increment."""
+        every Gauss point from the history of the previous increment
+        (``part="contact"``: left out, None)."""
         contact = []
         for i, s, x, _, _, geo, _, Xs in self._surface_inputs(w, params, t):
             if not s.has_history:
@@ -33,8 +34,29 @@ class ModelHistory:
                 continue
             contact.append(jax.vmap(lambda xs, X0, s=s, geo=geo: self.obstacle_at(s, X0).coordinate(
                 xs, geo))(x, Xs))
-        material = self._elements(w, params, state_n, tangent=False)[1] if self.n_state else None
+        material = None
+        if self.n_state and part == "all":
+            material = self._elements(w, params, state_n, tangent=False)[1]
         return (w, tuple(contact), material)
+
+    def _update_eager(self, w, params, t, state_n):
+        """:meth:`update`, the Gauss-point history from the element kind's programs."""
+        w_, contact, _ = self._update_contact(w, params, t, self.without_material(state_n))
+        material = self.element_history(w, params, state_n) if self.n_state else None
+        return (w_, contact, material)
+
+    def _update_jvp(self, w, params, t, state_n, w_dot, e, state_dot_n):
+        """JVP of :meth:`update` along (w_dot, e, state_dot_n), batched over the
+        directions (leading axis)."""
+        strip = self.without_material
+        wd, contact, _ = self._update_contact_jvp(w, params, t, strip(state_n), w_dot, e,
+                                                  strip(state_dot_n))
+        material = None
+        if self.n_state:
+            d = self.element_jvp("update", (1,), w, params, state_n, w_dot, e, state_dot_n)
+            material = np.zeros((len(np.asarray(w_dot)),) + np.shape(state_n[2])) if d is None \
+                else d[0]
+        return (wd, contact, material)
 
     def initial_state(self, w, params):
         """state_0 = (w_0, s_0 = s(X(phi)) at t = 0, virgin material); None without history."""
@@ -45,7 +67,7 @@ class ModelHistory:
         if self.n_state:
             h0 = jnp.broadcast_to(self.material.initial_state(),
                                   (len(self.conn), element.N_GAUSS, self.n_state))
-        contact = self.compiled.update(w, params, 0.0, (w, (None,) * len(self.surfaces), h0))[1]
+        contact = self._update_contact(w, params, 0.0, (w, (None,) * len(self.surfaces), None))[1]
         return (w, contact, h0)
 
     def initial_state_sensitivity(self, params, names):
@@ -56,7 +78,9 @@ class ModelHistory:
         z = jnp.zeros((len(names), self.n_dof))
         s0 = self.initial_state(jnp.zeros(self.n_dof), params)
         sd0 = jax.tree_util.tree_map(lambda a: jnp.zeros((len(names),) + a.shape), s0)
-        contact = self._update_jvp(jnp.zeros(self.n_dof), params, 0.0, s0, z, e, sd0)[1]
+        strip = self.without_material
+        contact = self._update_contact_jvp(jnp.zeros(self.n_dof), params, 0.0, strip(s0), z, e,
+                                           strip(sd0))[1]
         return (z, contact, sd0[2])
 
     def update_state(self, inc, params, t, state_n, state_dot, names):

@@ -15,12 +15,15 @@ with the state a pytree ``(w_n, contact history, material history)``:
 
 Residual and update are built from per-element kernels (:mod:`signorini.fem.element`,
 which take the kinematics and the formulation) and per-contact-node kernels
-(gradients of the contact pseudo-potentials), ``vmap``-ed. Newton gets the
-kernels' Jacobians block by block (:meth:`Model.local_tangents`, assembled
-sparsely once per pattern); the DDM pseudo-load is a JVP of ``residual`` in
-(params, w_p, state_n), the history sensitivity a JVP of ``update`` in
-(w, params, state_n) (:mod:`signorini.sensitivity`). The DOF layout lives in
-:mod:`signorini.model.dofs`.
+(gradients of the contact pseudo-potentials), ``vmap``-ed. What solvers call
+eagerly runs the same kernels through programs compiled once per element and
+contact kind, for every mesh (:mod:`signorini.model.cells`,
+:mod:`signorini.model.nodes`): Newton gets their Jacobians block by block
+(:meth:`Model.local_tangents`, assembled sparsely once per pattern); the DDM
+pseudo-load is a JVP of the residual in (params, w_p, state_n), the history
+sensitivity a JVP of ``update`` in (w, params, state_n)
+(:mod:`signorini.sensitivity`), the elements' through their kind's programs.
+The DOF layout lives in :mod:`signorini.model.dofs`.
 """
 
 from __future__ import annotations
@@ -40,8 +43,12 @@ from ..errors import InputError
 from ..contact.obstacles import Linearized
 from .fields import ModelFields
 from .geometry import NODES, ModelGeometry  # noqa: F401  (NODES: re-exported)
+from .cells import CellKernels
+from .contact_nodes import ModelContactNodes
+from .elements import ModelElements
 from .history import ModelHistory
 from .identity import stable_digest, structure_key
+from .nodes import NodeKernels
 from .problem import Problem
 from .stiffness import ModelStiffness
 from .validation import ModelChecks
@@ -50,8 +57,10 @@ from .validation import ModelChecks
 
 @dataclass(frozen=True)
 class Compiled:
-    """The model's compiled programs that solvers and outputs call eagerly (each
-    the ``jax.jit`` of the pure method of the same name)."""
+    """What solvers and outputs call eagerly: compiled programs of the pure
+    method of the same name, or (``residual``, ``update``, ``stiffness``) the
+    same values with the element part from the element kind's programs
+    (:mod:`signorini.model.cells`), as NumPy arrays."""
 
     residual: Callable      #: Model.residual(w, params, t, state_n)
     cases: Callable         #: Model.cases(w, params, t, state_n)
@@ -59,10 +68,11 @@ class Compiled:
     fields: Callable        #: Model.contact_fields(w, params, t, surface)
     update: Callable        #: Model.update(w, params, t, state_n)
     switch_fields: Callable  #: Model.switch_fields(w, params, t, state_n)
-    stiffness: Callable     #: element stiffness of a linear body, Ke(params)
+    stiffness: Callable     #: element stiffness of a linear body, Ke(params) (n_cells, 8, 8)
 
 
-class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelFields):
+class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelFields, ModelElements,
+            ModelContactNodes):
     """Kernels, DOF layout and sparsity pattern of a :class:`Problem`.
 
     The class is assembled from one part per concern, each in its own module:
@@ -70,9 +80,13 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     prescribed values), :class:`~signorini.model.validation.ModelChecks`
     (parameter checks), :class:`~signorini.model.history.ModelHistory` (history
     update and its sensitivity), :class:`~signorini.model.stiffness.ModelStiffness`
-    (a linear body's kept element stiffness, the tangent's analysis values) and
-    :class:`~signorini.model.fields.ModelFields` (post-processing); this module
-    holds the residual, the contact inputs and the tangent.
+    (a linear body's kept element stiffness, the tangent's analysis values),
+    :class:`~signorini.model.fields.ModelFields` (post-processing) and
+    :class:`~signorini.model.elements.ModelElements` and
+    :class:`~signorini.model.contact_nodes.ModelContactNodes` (the element and
+    contact parts through the programs of their kinds, compiled once for every
+    mesh: :mod:`signorini.model.cells`, :mod:`signorini.model.nodes`); this
+    module holds the pure residual, the contact inputs and the tangent.
 
     ``structure``: the problem's :func:`~signorini.model.identity.structure_key`
     when the caller has it already (:func:`signorini.algorithms.stepping.model_for`),
@@ -84,7 +98,8 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         kinematics, formulation: of the elements (plane strain / axisymmetric,
             standard / F-bar).
         pattern: the sparsity pattern of the free-free tangent.
-        fext: compiled external forces ``fext(X, params, t)``.
+        cells, node_kernels: the programs of the element kind and of each contact
+            surface's kind (compiled once for every mesh).
         cache: compiled DDM / response functions, reused across solves.
         compiled: the compiled programs solvers and outputs call (:class:`Compiled`).
     """
@@ -113,7 +128,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         # Newton iteration, which then costs the contact kernels and a block product only
         self.linear_elements = (bool(p.material.linear) and not self.n_state
                                 and isinstance(self.formulation, element.Standard))
-        self._ke = None  # (element_key, Ke as JAX array, Ke as NumPy array)
+        self._ke = None  # (element_key, Ke (n_cells, 8, 8))
         self._element_names = self.element_parameters()  # what Ke depends on (element_key)
         self._fixed_groups = None  # (distinct Fixed, index of each prescribed DOF's)
         self.pattern = SparsityPattern(layout.block_dofs(), layout.n_dof, layout.free)
@@ -124,27 +139,32 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         except TypeError:
             self.key = None
         program = self.program
-        self.fext = program(self.external_forces, "fext")
+        # the element kernels: compiled once per element kind, shared by every mesh
+        self.cells = CellKernels.of(p.material, self.kinematics, self.formulation)
+        self._edofs_ravel = None
         self.cache: dict = {}
-        self._local = program(self._local_impl, "local")
-        # friction: the case flags and the tangent in one program: one dispatch per Newton
-        # evaluation instead of two, which matters on small meshes, where a dispatch
-        # costs more than the work (docs/theory.md §10.2)
-        self._local_cases = program(self._local_cases_impl, "local_cases")
+        # the contact kernels: compiled once per contact kind (method, obstacle, kinematics)
+        self.node_kernels = [NodeKernels.of(s.contact.method, s.contact.obstacle, lin)
+                             for s, lin in zip(layout.surfaces, self.linear_contact)]
+        # what they take that depends on the parameters and t only (small, per model)
+        self._contact_geometry = program(self._contact_geometry_impl, "contact_geometry")
+        self._update_contact = program(
+            lambda w, p, t, s: self.update(w, p, t, s, "contact"), "update_contact")
         self.compiled = Compiled(
-            residual=program(self.residual, "residual"), cases=program(self.cases, "cases"),
+            residual=self._residual_eager, cases=self._cases_eager,
             status=program(self.contact_status, "status", static_argnums=4),
-            fields=program(self.contact_fields, "fields", static_argnums=3),
-            update=program(self.update, "update"),
+            fields=self._fields_eager,
+            update=self._update_eager,
             switch_fields=program(self.switch_fields, "switch_fields"),
-            stiffness=program(lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1],
-                              "stiffness"))
+            stiffness=self._element_stiffness_cells)
         self._reference = program(self._reference_impl, "reference")
         self.prescribed_at = program(self.prescribed_values, "prescribed")  # one program, not an op per Fixed
-        self._update_jvp = program(jax.vmap(
-            lambda w, p, t, s, wd, e, sd: jax.jvp(lambda w_, p_, s_: self.update(w_, p_, t, s_),
-                                                  (w, p, s), (wd, e, sd))[1],
-            (None, None, None, None, 0, 0, 0)), "update_jvp")
+        self._update_contact_jvp = program(jax.vmap(
+            lambda w, p, t, s, wd, e, sd: jax.jvp(
+                lambda w_, p_, s_: self.update(w_, p_, t, s_, "contact"), (w, p, s), (wd, e, sd))[1],
+            (None, None, None, None, 0, 0, 0)), "update_contact_jvp")
+        self._parameter_jvp = program(self._parameter_jvp_impl, "parameter_jvp")
+        self._parameter_vjp = program(self._parameter_vjp_impl, "parameter_vjp")
 
     def program(self, fn, name: str, static_argnums=()) -> Program:
         """``jax.jit(fn)`` kept between processes under this model's key and ``name``
@@ -314,20 +334,12 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
 
-    def _local_impl(self, w, params, t, state_n=None, cases=None, Ke=None):
-        """Residual and the Jacobian blocks of every element and contact node
-        (``Ke``: the constant element stiffness of a linear body, if known; it is
-        then not returned again, the blocks start with the contact blocks: as an
-        output, Ke would be copied out of the compiled program on every call, a
-        copy as large as the whole element stiffness)."""
-        if Ke is None:
-            re, Ke_new, _ = self._elements(w, params, state_n, tangent=True)
-            blocks = [Ke_new]
-            R = jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
-        else:
-            R = self.linear_forces(Ke, w)
-            blocks = []
-        R = R - self.external_forces(self.reference(params), params, t)
+    def _local_impl(self, w, params, t, state_n=None, cases=None):
+        """Pure function: the residual without the internal forces and the
+        Jacobian blocks of every contact node, by a vmap over the nodes (what
+        :meth:`contact_tangents` computes through the contact kinds' programs)."""
+        R = -self.external_forces(self.reference(params), params, t)
+        blocks = []
         for i, s, x, lam, A, geo, cp, Xs in self._surface_inputs(w, params, t):
             h = self._node_history(i, state_n, cases)
             method = s.contact.method
@@ -345,21 +357,27 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             blocks.append(Kc)
         return R, blocks
 
-    def _local_cases_impl(self, w, params, t, state_n, Ke=None):
-        """:meth:`_local_impl` with the friction case flags computed first, once, and
-        passed to every node as data (docs/theory.md §3.4)."""
-        return self._local_impl(w, params, t, state_n, self.cases(w, params, t, state_n), Ke)
+    @staticmethod
+    def without_material(state):
+        """The state with its Gauss-point history left out (what the contact and
+        load programs take: they do not read it, and it need not be copied to them)."""
+        return None if state is None else (state[0], state[1], None)
 
     def local_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
-        Ke, Ke_np = self.element_stiffness(params) if self.linear_elements else (None, None)
-        if self.has_contact_history:
-            R, blocks = self._local_cases(w, params, t, state_n, Ke)
+        R, blocks = self.contact_tangents(w, params, t, state_n)
+        if self.linear_elements:
+            Ke = self.element_stiffness(params)
+            R_el = self.linear_forces_np(Ke, w)
         else:
-            R, blocks = self._local(w, params, t, state_n, None, Ke)
-        head = [] if Ke_np is None else [Ke_np]
-        return np.asarray(R), head + [np.asarray(b) for b in blocks]
+            R_el, Ke = self.element_tangents(w, params, state_n)
+        return R_el + R, [Ke] + blocks
 
-
-
-
+    def _residual_eager(self, w, params, t, state_n=None):
+        """:meth:`residual` (NumPy), the internal forces from the element kind's programs."""
+        R = self.contact_residual(w, params, t, state_n)
+        if self.linear_elements:
+            R_el = self.linear_forces_np(self.element_stiffness(params), w)
+        else:
+            R_el = self.element_forces(w, params, state_n)[0]
+        return R_el + R

@@ -32,15 +32,16 @@ class ModelStiffness:
         names = params if self._element_names is None else self._element_names
         return tuple(sorted((k, float(params[k])) for k in names))
 
-    def element_stiffness(self, params):
-        """(Ke JAX, Ke NumPy) (n_cells, 8, 8) of a linear body, computed once per
-        values of the element parameters (E, nu, shape parameters may differ
-        between solves; :meth:`element_key`)."""
+    def element_stiffness(self, params) -> np.ndarray:
+        """Ke (n_cells, 8, 8) of a linear body, computed once per values of the
+        element parameters (E, nu, shape parameters may differ between solves;
+        :meth:`element_key`)."""
         key = self.element_key(params)
         if self._ke is None or self._ke[0] != key:
             Ke = self.compiled.stiffness(params)
-            self._ke = (key, Ke, np.asarray(Ke))
-        return self._ke[1], self._ke[2]
+            Ke.flags.writeable = False  # unchanged: the assembly keeps its scatter
+            self._ke = (key, Ke)
+        return self._ke[1]
 
     def linear_forces(self, Ke, w):
         """(n_dof,) internal forces sum_e K_e u_e of a linear body with element

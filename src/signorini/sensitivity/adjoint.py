@@ -75,11 +75,14 @@ class Adjoint:
         self.model = m = model
         self._fn = jax.jit(jax.value_and_grad(fn, argnums=(0, 1, 3)))
 
+        # the contact and external forces and the contact history (per model); the
+        # element part comes from the element kind's programs (Model.element_vjp)
         def res_vjp(w, p, t, s, cases, c):
-            return jax.vjp(lambda w_, p_, s_: m.residual(w_, p_, t, s_, cases), w, p, s)[1](c)
+            return jax.vjp(lambda w_, p_, s_: m.residual(w_, p_, t, s_, cases, "rest"),
+                           w, p, s)[1](c)
 
         def upd_vjp(w, p, t, s, c):
-            return jax.vjp(lambda w_, p_, s_: m.update(w_, p_, t, s_), w, p, s)[1](c)
+            return jax.vjp(lambda w_, p_, s_: m.update(w_, p_, t, s_, "contact"), w, p, s)[1](c)
 
         def wp_vjp(p, t, c):
             return jax.vjp(lambda p_: m.prescribed_values(p_, t), p)[1](c)[0]
@@ -87,11 +90,34 @@ class Adjoint:
         def init_vjp(p, c):
             return jax.vjp(lambda p_: m.initial_state(jnp.zeros(m.n_dof), p_), p)[1](c)[0]
 
-        self._res_vjp = m.program(res_vjp, "adjoint_residual_vjp")
-        self._upd_vjp = m.program(upd_vjp, "adjoint_update_vjp")
+        self._res_vjp_rest = m.program(res_vjp, "adjoint_residual_vjp")
+        self._upd_vjp_rest = m.program(upd_vjp, "adjoint_update_vjp")
         self._wp_vjp = m.program(wp_vjp, "adjoint_prescribed_vjp")
         self._init_vjp = m.program(init_vjp, "adjoint_initial_vjp")
         self._cases = m.compiled.cases
+
+    def _res_vjp(self, w, pe, t, s, cases, c):
+        """(dR/d(w, phi, s))^T c: the rest's program plus the elements' programs."""
+        m = self.model
+        rw, rp, rs = self._res_vjp_rest(w, pe, t, m.without_material(s), cases, c)
+        ew, ep, eh = m.element_vjp("update", (0,), w, pe, s, (np.asarray(c)[m.edofs],))
+        return np.asarray(rw) + ew, _add(rp, ep), self._with_material(rs, eh)
+
+    def _upd_vjp(self, w, pe, t, s, c):
+        """(dU/d(w, phi, s))^T c: the contact history's program plus, with a
+        material history, the elements' programs."""
+        m = self.model
+        uw, up, us = self._upd_vjp_rest(w, pe, t, m.without_material(s), (c[0], c[1], None))
+        if not m.n_state:
+            return uw, up, us
+        ew, ep, eh = m.element_vjp("update", (1,), w, pe, s, (np.asarray(c[2]),))
+        return np.asarray(uw) + ew, _add(up, ep), self._with_material(us, eh)
+
+    def _with_material(self, s_bar, h_bar):
+        """A state cotangent (w_n, contact, None) completed with the Gauss-point history's."""
+        if s_bar is None or not self.model.n_state:
+            return s_bar
+        return (s_bar[0], s_bar[1], h_bar)
 
     def backward(self, solution, params_ext: dict, selected, *, solver="auto"):
         """d(sum over ``selected`` increments of G_n)/d(params_ext) by one backward pass.

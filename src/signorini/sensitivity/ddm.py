@@ -58,40 +58,26 @@ class DDM:
         def wp_dot(params, t, e):
             return jax.jvp(lambda p: model.prescribed_values(p, t), (params,), (e,))[1]
 
-        def pseudo(w, params, t, state_n, cases, w_dot, e, state_dot_n, part):
-            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_, cases, part)
+        def pseudo(w, params, t, state_n, cases, w_dot, e, state_dot_n):
+            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_, cases, "rest")
             return jax.jvp(f, (w, params, state_n), (w_dot, e, state_dot_n))[1]
 
-        axes = (None, None, None, None, None, 0, 0, 0)
         self._wp_dot = model.program(jax.vmap(wp_dot, (None, None, 0)), "ddm_wp_dot")
-        self._pseudo = {part: model.program(jax.vmap(lambda *a, part=part: pseudo(*a, part), axes),
-                                            f"ddm_pseudo_{part}")
-                        for part in ("all", "elements", "rest")}
+        # the pseudo-load of the contact and external forces (per model); that of the
+        # internal forces comes from the element kind's programs (Model.element_jvp)
+        self._pseudo_rest = model.program(
+            jax.vmap(pseudo, (None, None, None, None, None, 0, 0, 0)), "ddm_pseudo_rest")
         # Names whose pseudo-load has no internal-force part can skip the element
         # kernels (the costly half of a pseudo-load): those that enter neither the
         # material nor the shape, nor a prescribed displacement, nor (plasticity)
         # the element history.
         el = model.element_parameters()
         self._element_names = None if (el is None or model.n_state) else el
-
-        def material_pseudo(w, params, t, e_el):
-            # tangents on the element parameters only, the displacements held: the
-            # other parameters' tangents are symbolic zeros, so the geometry (without
-            # shape parameters) is not differentiated, as it would be with a one-hot
-            # tangent on every parameter
-            f = lambda sub: model.residual(w, {**params, **sub}, t, None, None, "elements")
-            return jax.jvp(f, ({k: params[k] for k in e_el},), (e_el,))[1]
-
-        self._material_pseudo = model.program(jax.vmap(material_pseudo, (None, None, None, 0)),
-                                              "ddm_material_pseudo")
         # A linear body's internal forces are K_e(phi) u_e: along a load path their
         # pseudo-load is (dK_e/dphi_k) u_e + K_e du_e/dphi_k, with dK_e/dphi_k
         # computed once per parameter values (``reuse_stiffness``)
-        self._dke_fn = model.program(jax.vmap(lambda p, e: jax.jvp(model.compiled.stiffness, (p,),
-                                                                   (e,))[1], (None, 0)), "ddm_dke")
         self._dke = None  # (key, names, (n, n_cells, 8, 8) NumPy)
         self._proportional = proportional_parameter(model)
-        self._fint = model.program(model.linear_forces, "linear_forces")
         # the free DOFs are np.nonzero of this mask (dofs.DofLayout): sorted, so the
         # mask visits them in the order of the solution's rows
         self._free_mask = np.zeros(model.n_dof, dtype=bool)
@@ -179,40 +165,36 @@ class DDM:
         """(n_names, n_dof) pseudo-loads; element kernels only for the names that
         need them."""
         m = self.model
-        wd = to_device(w_dot)
-        if self._element_names is None:
-            return np.asarray(self._pseudo["all"](w, params, t, state_n, cases, wd, e, state_dot_n))
+        strip = m.without_material
+        P = np.array(self._pseudo_rest(w, params, t, strip(state_n), cases, to_device(w_dot), e,
+                                       strip(state_dot_n)))
         moves = np.any(w_dot[:, m.prescribed] != 0.0, axis=1) if m.prescribed.size else \
             np.zeros(len(self.names), bool)
-        el = np.array([n in self._element_names for n in self.names]) | moves
-        if el.all() and (self._proportional not in self.names or moves.any()):
-            return np.asarray(self._pseudo["all"](w, params, t, state_n, cases, wd, e, state_dot_n))
-        P = np.array(self._pseudo["rest"](w, params, t, state_n, cases, wd, e, state_dot_n))
-        if el.any():
-            k = np.nonzero(el)[0]
-            if reuse_stiffness and m.linear_elements and self._linear_pseudo(P, k, w, params, w_dot):
-                return P
-            if moves[k].any():
-                sub = jax.tree_util.tree_map(lambda a: a[k], (wd, e, state_dot_n))
-                P[k] += np.asarray(self._pseudo["elements"](w, params, t, state_n, cases, *sub))
-            else:  # no prescribed motion: the internal forces see the parameters only
-                prop = [j for j in k if self.names[j] == self._proportional]
-                if prop:  # K_e proportional to it: dK_e/dE u_e = K_e u_e / E
-                    P[prop[0]] += self._internal_forces(w, params) / float(params[self._proportional])
-                k = np.array([j for j in k if self.names[j] != self._proportional], dtype=int)
-                if k.size:
-                    # only the design names: a tangent of zeros on another element parameter
-                    # (a shape parameter not designed) would still differentiate the geometry
-                    e_el = {n: to_device(np.asarray(e[n])[k]) for n in self.names
-                            if n in self._element_names and n != self._proportional}
-                    P[k] += np.asarray(self._material_pseudo(w, params, t, e_el))
+        if self._element_names is None:
+            el = np.ones(len(self.names), bool)
+        else:
+            el = np.array([n in self._element_names for n in self.names]) | moves
+        k = np.nonzero(el)[0]
+        if not k.size:
+            return P
+        if reuse_stiffness and m.linear_elements and self._linear_pseudo(P, k, w, params, w_dot):
+            return P
+        if m.linear_elements and self._proportional is not None:
+            # K_e proportional to E: dK_e/dE u_e = K_e u_e / E (the displacements held)
+            prop = [j for j in k if self.names[j] == self._proportional and not moves[j]]
+            if prop:
+                P[prop[0]] += self._internal_forces(w, params) / float(params[self._proportional])
+                k = np.array([j for j in k if j != prop[0]], dtype=int)
+        if k.size:
+            sub = jax.tree_util.tree_map(lambda a: np.asarray(a)[k], (w_dot, e, state_dot_n))
+            d = m.element_jvp("update", (0,), w, params, state_n, *sub)
+            if d is not None:
+                P[k] += m.scatter(d[0])
         return P
 
     def _internal_forces(self, w, params) -> np.ndarray:
-        """(n_dof,) internal forces K_e u_e of a linear body, from its kept K_e
-        (compiled: the gather, product and scatter fuse in one program, where
-        NumPy's batched product makes a temporary of each)."""
-        return np.asarray(self._fint(self.model.element_stiffness(params)[0], w))
+        """(n_dof,) internal forces K_e u_e of a linear body, from its kept K_e."""
+        return self.model.linear_forces_np(self.model.element_stiffness(params), w)
 
     #: largest dK_e/dphi kept (bytes); above it the pseudo-load is a JVP every increment
     DKE_BUDGET = 512 * 2**20
@@ -229,8 +211,10 @@ class DDM:
         names = tuple(self.names[j] for j in mat)
         if mat and (self._dke is None or self._dke[:2] != (key, names)):
             e = unit_tangents(params, list(names))
-            self._dke = (key, names, np.asarray(self._dke_fn(params, e)))
-        _, Ke = m.element_stiffness(params)
+            d = m.element_jvp("tangent", (1,), np.zeros(m.n_dof), params, None, None, e, None)
+            self._dke = (key, names, np.zeros((len(names),) + m.edofs.shape + (8,)) if d is None
+                         else d[0])
+        Ke = m.element_stiffness(params)
         ue = np.asarray(w)[m.edofs]
         flat = m.edofs.ravel()
         for j in k:

@@ -1,0 +1,38 @@
+"""The element kernels of an element kind, compiled once for every mesh
+(:mod:`signorini.model.chunks`, docs/theory.md §10.6).
+
+The kernels of :mod:`signorini.fem.element` (internal forces, tangent, history
+update) depend on the kind of element only: kinematics x formulation x
+material. An item is a cell: ``items = (u_e (4, 2), X_e (4, 2), h_e (4, n_state)
+or None)``, and the material values ``mp`` are shared by every cell.
+"""
+
+from __future__ import annotations
+
+from ..fem import element
+from .chunks import Chunked
+
+
+class CellKernels(Chunked):
+    """The element programs of one kind: ``CellKernels.of(material, kinematics,
+    formulation)``. Kernels: ``"update"`` -> (r (8,), h (4, n_state)) and
+    ``"tangent"`` -> (r (8,), K (8, 8), h)."""
+
+    #: cells per chunk: chunks of 4096 while that many cells are left, the rest in
+    #: chunks of 512. From ``benchmarks/study_chunking.py`` (docs/benchmarks.md):
+    #: chunks of 4096 cost 0.6-0.7x of one vmap over the whole mesh per cell from
+    #: 56k DOFs up (a chunk's intermediates stay in cache), and 512 bounds the
+    #: padding of a small mesh
+    SIZES = (4096, 512)
+
+    def _kernel(self, name: str):
+        m, k, f = self.parts
+        if name == "update":
+            def update(items, mp):
+                ue, Xe, he = items
+                r, h = element.element_update(ue, Xe, m, mp, he, k, f)
+                return r.reshape(8), h
+            return update
+        if name == "tangent":
+            return lambda items, mp: element.element_residual_tangent(*items[:2], m, mp, items[2], k, f)
+        raise KeyError(f"no element kernel {name!r}")

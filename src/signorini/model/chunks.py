@@ -1,0 +1,179 @@
+"""Kernels compiled once per kind, whatever the mesh: the chunked programs
+behind the element kinds (:mod:`signorini.model.cells`) and the contact node
+kinds (:mod:`signorini.model.nodes`) (docs/theory.md §10.6).
+
+A kernel is a function of one item (a cell, a contact node): ``f(items, shared)``
+with ``items`` a tuple of the item's data (arrays or pytrees of arrays, or None)
+and ``shared`` a pytree of values common to every item (material values,
+obstacle geometry). It is compiled for fixed chunks of items, ``vmap``-ed over
+each chunk, and every mesh runs through the same compiled programs: the items
+are gathered into chunks in NumPy, each chunk is one call of a program (its
+executables kept in memory and on disk by :mod:`signorini._programs`), and the
+results are concatenated. The last chunk is padded with copies of its first
+item, whose results are dropped and whose cotangents are zero.
+
+Besides the values, a kind gives directional derivatives (JVP, batched over
+directions) and cotangents (VJP, the shared values' summed over the items) of
+any kernel: the DDM pseudo-loads and the adjoint's transposed products.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jax import jax
+from .._programs import Program
+from .identity import _structure, stable_digest
+
+tree_map = jax.tree_util.tree_map
+
+
+def plan(n: int, sizes: tuple[int, int]) -> list[tuple[int, int]]:
+    """(first item, chunk size) of every chunk covering n items: chunks of
+    ``sizes[0]`` while that many are left, the rest in chunks of ``sizes[1]``."""
+    big, small = sizes
+    out, start = [], 0
+    while n - start >= big:
+        out.append((start, big))
+        start += big
+    while start < n:
+        out.append((start, small))
+        start += small
+    return out
+
+
+def _concat(parts, axis: int):
+    """Concatenate a list of pytrees of (valid, arrays) along ``axis``."""
+    return tree_map(lambda *a: np.concatenate(a, axis=axis), *parts)
+
+
+class Chunked:
+    """The chunked programs of one kind (subclasses define :meth:`_kernel`).
+
+    One instance per kind and process (:meth:`of`); its programs are named by
+    mode, kernel, outputs and tangent pattern, and kept on disk under the kind's
+    content digest (memory only if the kind cannot be digested)."""
+
+    #: items per chunk, largest first (subclasses choose)
+    SIZES: tuple[int, int] = (4096, 512)
+    _shared_kinds: dict = {}
+
+    def __init__(self, parts, key):
+        self.parts = parts
+        self.key = key
+        self._programs: dict = {}
+
+    @classmethod
+    def of(cls, *parts) -> Chunked:
+        """The instance of this kind (``parts``: what the kernels are built from)."""
+        try:
+            structure = (cls.__qualname__, _structure(parts))
+            hash(structure)
+        except TypeError:
+            structure = (cls.__qualname__, "id") + tuple(id(p) for p in parts)
+        k = Chunked._shared_kinds.get(structure)
+        if k is None:
+            k = Chunked._shared_kinds[structure] = cls(parts, stable_digest(structure))
+        return k
+
+    def _kernel(self, name: str):  # pragma: no cover - abstract
+        """f(items, shared) -> tuple of outputs, for one item."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------ programs
+    def _program(self, mode: str, name: str, outs: tuple, mask: tuple = ()) -> Program:
+        spec = (mode, name, outs, mask)
+        p = self._programs.get(spec)
+        if p is not None:
+            return p
+        kernel = self._kernel(name)
+        one = lambda items, shared: tuple(kernel(items, shared)[i] for i in outs)
+        over = jax.vmap(one, (0, None))  # every item of a chunk
+        if mode == "primal":
+            fn = over
+        elif mode == "jvp":
+            # tangents of the arguments in ``mask`` only (the items', then the shared
+            # values'; symbolic zeros elsewhere), batched over their leading axis
+            idx = [i for i, m in enumerate(mask) if m]
+
+            def fn(items, shared, dots):
+                args = list(items) + [shared]
+
+                def sub(*xs):
+                    a = list(args)
+                    for i, x in zip(idx, xs):
+                        a[i] = x
+                    return over(tuple(a[:-1]), a[-1])
+
+                return jax.vmap(lambda d: jax.jvp(sub, tuple(args[i] for i in idx), d)[1])(dots)
+        else:  # vjp
+            def fn(items, shared, cot):
+                return jax.vjp(over, items, shared)[1](cot)
+        p = self._programs[spec] = Program(
+            fn, f"{type(self).__name__}.{mode}.{name}.{outs}.{mask}", self.key)
+        return p
+
+    # -------------------------------------------------------------- running
+    def _run(self, n: int, call, items, dots=(), zero=()):
+        """``call(items chunk, dots chunk)`` over the chunks of n items: ``items``
+        cut on axis 0 (pytrees, None kept), ``dots`` on axis 1; in ``zero`` (indices
+        into items) the padding is zero instead of copies. Returns [(valid, out)]."""
+        results = []
+        for start, size in plan(n, self.SIZES):
+            valid = min(size, n - start)
+            index = np.arange(start, start + size)
+            index[valid:] = start
+            chunk = []
+            for j, a in enumerate(items):
+                c = tree_map(lambda x: np.take(x, index, axis=0), a)
+                if j in zero and valid < size:
+                    c = tree_map(lambda x: _zero_tail(x, valid), c)
+                chunk.append(c)
+            dchunk = tree_map(lambda x: np.take(x, index, axis=1), dots)
+            results.append((valid, call(tuple(chunk), dchunk)))
+        return results
+
+    def __call__(self, name: str, outs: tuple, items: tuple, shared):
+        """The kernel's outputs ``outs`` for every item: a tuple of (n, ...) arrays."""
+        prog = self._program("primal", name, outs)
+        res = self._run(_count(items), lambda c, _: prog(c, shared), items)
+        return _concat([tree_map(lambda a, v=v: np.asarray(a)[:v], r) for v, r in res], 0)
+
+    def jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
+        """Derivatives of the outputs ``outs`` along ``dots`` (one per item argument,
+        then one for ``shared``: arrays (k, n, ...) / pytree of (k,) arrays, or None:
+        zero), a tuple of (k, n, ...) arrays; None if every tangent is None."""
+        mask = tuple(d is not None for d in dots)
+        if not any(mask):
+            return None
+        prog = self._program("jvp", name, outs, mask)
+        item_dots = tuple(d for d in dots[:-1] if d is not None)
+        shared_dot = dots[-1]
+
+        def call(c, dc):
+            d = list(dc) + ([shared_dot] if shared_dot is not None else [])
+            return prog(c, shared, tuple(d))
+
+        res = self._run(_count(items), call, items, item_dots)
+        return _concat([tree_map(lambda a, v=v: np.asarray(a)[:, :v], r) for v, r in res], 1)
+
+    def vjp(self, name: str, outs: tuple, items: tuple, shared, cot: tuple):
+        """Cotangents (of ``items`` (per item), of ``shared`` (summed over the items))
+        of the outputs ``outs`` with cotangents ``cot`` (a tuple of (n, ...) arrays)."""
+        prog = self._program("vjp", name, outs)
+        k = len(items)
+        res = self._run(_count(items), lambda c, _: prog(c[:k], shared, c[k:]),
+                        tuple(items) + tuple(cot), zero=tuple(range(k, k + len(cot))))
+        items_bar = _concat([tree_map(lambda a, v=v: np.asarray(a)[:v], r[0]) for v, r in res], 0)
+        shared_bar = tree_map(lambda *a: sum(np.asarray(x) for x in a), *[r[1] for _, r in res])
+        return items_bar, shared_bar
+
+
+def _count(items) -> int:
+    return len(jax.tree_util.tree_leaves(items)[0])
+
+
+def _zero_tail(x, valid: int):
+    x = np.array(x)
+    x[valid:] = 0
+    return x

@@ -1,0 +1,125 @@
+"""The element part of the residual, the tangent, the history update and their
+derivatives, evaluated through the element kind's programs
+(:mod:`signorini.model.cells`): the model gathers its cells' data, the kind's
+programs run over chunks of them, the model scatters the results back.
+
+These are what solvers and sensitivities call eagerly; the pure functions of
+:class:`~signorini.model.kernels.Model` (``residual``, ``update``), which a user's
+response may differentiate, compute the same forces by a ``vmap`` over the cells
+inside the caller's program.
+
+A part of :class:`signorini.model.kernels.Model` (a mixin: its methods use the
+model's layout, kernels and compiled programs)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jax import jax
+
+
+class ModelElements:
+    """The element part of residual, tangent and update, and their derivatives."""
+
+    def _cell_arrays(self, w, params, state_n):
+        """(u_e (n, 4, 2), X_e (n, 4, 2), mp, h_e or None) of every cell (NumPy)."""
+        X = np.asarray(self.reference(params))
+        ue = np.asarray(w)[self.edofs].reshape(-1, 4, 2)
+        h = None
+        if self.n_state:
+            h = np.asarray(self._material_history(state_n))
+        return ue, X[self.conn], self.material.values(params), h
+
+    def scatter(self, re) -> np.ndarray:
+        """(n_dof,) sum of per-cell (n, 8) values at their DOFs (k-batched: (k, n, 8))."""
+        flat = self._edofs_flat
+        if re.ndim == 2:
+            return np.bincount(flat, weights=re.ravel(), minlength=self.n_dof)
+        return np.stack([np.bincount(flat, weights=r.ravel(), minlength=self.n_dof) for r in re])
+
+    def _scatter_nodes(self, Xbar) -> np.ndarray:
+        """(n_nodes, 2) sum of per-cell (n, 4, 2) node values."""
+        return self.scatter(Xbar.reshape(-1, 8))[:2 * self.n_nodes].reshape(-1, 2)
+
+    @property
+    def _edofs_flat(self):
+        if getattr(self, "_edofs_ravel", None) is None:
+            self._edofs_ravel = np.ascontiguousarray(self.edofs.ravel())
+        return self._edofs_ravel
+
+    # --------------------------------------------------------------- values
+    def element_forces(self, w, params, state_n=None):
+        """(internal forces (n_dof,), updated Gauss-point history or None)."""
+        ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
+        re, h = self.cells("update", (0, 1), (ue, Xe, he), mp)
+        return self.scatter(re), (h if self.n_state else None)
+
+    def element_history(self, w, params, state_n):
+        """The updated Gauss-point history (n, 4, n_state) after convergence at w."""
+        ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
+        return self.cells("update", (1,), (ue, Xe, he), mp)[0]
+
+    def element_tangents(self, w, params, state_n=None):
+        """(internal forces (n_dof,), element tangents (n, 8, 8))."""
+        ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
+        re, Ke = self.cells("tangent", (0, 1), (ue, Xe, he), mp)
+        return self.scatter(re), Ke
+
+    def _element_stiffness_cells(self, params) -> np.ndarray:
+        """K_e (n, 8, 8) of a linear body: the tangent at u = 0."""
+        ue, Xe, mp, _ = self._cell_arrays(np.zeros(self.n_dof), params, None)
+        return self.cells("tangent", (1,), (ue, Xe, None), mp)[0]
+
+    def linear_forces_np(self, Ke, w) -> np.ndarray:
+        """(n_dof,) internal forces sum_e K_e u_e of a linear body (NumPy)."""
+        ue = np.asarray(w)[self.edofs]
+        return self.scatter(np.matmul(Ke, ue[:, :, None])[:, :, 0])
+
+    # ---------------------------------------------------------- derivatives
+    def parameter_dots(self, params, e):
+        """(dX (k, n_nodes, 2) or None, dmp (dict of (k,)) or None): the
+        reference coordinates' and material values' derivatives along the batched
+        parameter tangents ``e`` (None where zero)."""
+        dX, dmp = self._parameter_jvp(params, e)
+        dX = np.asarray(dX)
+        dmp = {k: np.asarray(v) for k, v in dmp.items()}
+        return (dX if np.any(dX) else None), (dmp if any(np.any(v) for v in dmp.values()) else None)
+
+    def element_jvp(self, name: str, outs: tuple, w, params, state_n, w_dot, e, state_dot_n,
+                    hold_w: bool = False):
+        """JVP of the element outputs ``outs`` of kernel ``name`` along the batched
+        tangents (w_dot (k, n_dof), e, state_dot_n), per cell ((k, n, ...) each);
+        ``hold_w``: the displacements held (w_dot ignored)."""
+        ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
+        dX, dmp = self.parameter_dots(params, e)
+        k = len(next(iter(e.values()))) if e else np.asarray(w_dot).shape[0]
+        du = None
+        if not hold_w and w_dot is not None:
+            wd = np.asarray(w_dot)
+            if np.any(wd):
+                du = wd[:, self.edofs].reshape(k, -1, 4, 2)
+        dXe = None if dX is None else dX[:, self.conn]
+        dh = None
+        if self.n_state and state_dot_n is not None and state_dot_n[2] is not None:
+            dh = np.asarray(state_dot_n[2])
+            dh = dh if np.any(dh) else None
+        return self.cells.jvp(name, outs, (ue, Xe, he), mp, (du, dXe, dh, dmp))
+
+    def element_vjp(self, name: str, outs: tuple, w, params, state_n, cot):
+        """Cotangents of (w (n_dof,), params (pytree like ``params``), Gauss-point
+        history (n, 4, n_state) or None) of the element outputs ``outs`` of kernel
+        ``name`` with per-cell cotangents ``cot``."""
+        ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
+        (du, dXe, dh), dmp = self.cells.vjp(name, outs, (ue, Xe, he), mp, cot)
+        w_bar = self.scatter(du.reshape(-1, 8))
+        p_bar = self._parameter_vjp(params, self._scatter_nodes(dXe), dmp)
+        return w_bar, p_bar, dh
+
+    def _parameter_jvp_impl(self, params, e):
+        f = lambda p: (self.reference(p) if self.shape_names else self._X0,
+                       self.material.values(p))
+        return jax.vmap(lambda d: jax.jvp(f, (params,), (d,))[1])(e)
+
+    def _parameter_vjp_impl(self, params, X_bar, mp_bar):
+        f = lambda p: (self._reference_impl(p), self.material.values(p))
+        return jax.vjp(f, params)[1]((X_bar, mp_bar))[0]

@@ -1,0 +1,69 @@
+"""Kernels compiled once per kind and run over chunks of items
+(signorini.model.chunks, .cells, .nodes): the same values, derivatives and
+cotangents as one vmap over every item, whatever the number of items (full
+chunks, a padded last chunk, both chunk sizes)."""
+
+import numpy as np
+import pytest
+
+from signorini._jax import jax
+from signorini.fem import element, kinematics
+from signorini.materials import J2Plasticity, LinearElastic
+from signorini.model import chunks
+from signorini.model.cells import CellKernels
+
+SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+
+
+def _cells(n, rng):
+    Xe = SQUARE[None] * rng.uniform(0.5, 1.5, (n, 1, 1)) + rng.normal(0, 0.05, (n, 4, 2)) + 2.0
+    ue = rng.normal(0, 1e-2, (n, 4, 2))
+    return ue, Xe
+
+
+def test_plan_covers_every_item_once():
+    for n in (1, 511, 512, 513, 4095, 4096, 4097, 9000):
+        p = chunks.plan(n, (4096, 512))
+        covered = np.concatenate([np.arange(s, s + c) for s, c in p])
+        assert covered[:n].tolist() == list(range(n)) and len(covered) - n < 512
+        assert sum(c == 4096 for _, c in p) == n // 4096
+
+
+@pytest.mark.parametrize("n", [300, 4096 + 700])
+def test_cell_kernels_equal_one_vmap(n):
+    """Values, a batched JVP and a VJP of the element kernel of an axisymmetric
+    J2 F-bar body, through the chunks, against one vmap over all cells."""
+    rng = np.random.default_rng(n)
+    mat, kin, form = J2Plasticity(), kinematics.AXISYMMETRIC, element.FBar()
+    mp = {"E": 200.0, "nu": 0.3, "sigma_y": 0.4, "H": 2.0}
+    ue, Xe = _cells(n, rng)
+    he = np.broadcast_to(mat.initial_state(), (n, 4, mat.n_state)).copy()
+    k = CellKernels.of(mat, kin, form)
+    f = lambda u, X, m, h: element.element_update(u, X, mat, m, h, kin, form)
+    whole = jax.vmap(f, (0, 0, None, 0))
+    r, h = k("update", (0, 1), (ue, Xe, he), mp)
+    r0, h0 = whole(ue, Xe, mp, he)
+    np.testing.assert_allclose(r, np.asarray(r0).reshape(n, 8), rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(h, h0, rtol=1e-13, atol=1e-15)
+    # JVP along two directions: displacements and E
+    du = rng.normal(size=(2, n, 4, 2))
+    dmp = {key: np.array([0.0, 1.0]) if key == "E" else np.zeros(2) for key in mp}
+    (dr,) = k.jvp("update", (0,), (ue, Xe, he), mp, (du, None, None, dmp))
+    for j in range(2):
+        ref = jax.jvp(lambda u, m: whole(u, Xe, m, he)[0], (ue, mp),
+                      (du[j], {key: v[j] for key, v in dmp.items()}))[1]
+        np.testing.assert_allclose(dr[j], np.asarray(ref).reshape(n, 8), rtol=1e-11,
+                                   atol=1e-12 * np.abs(ref).max())
+    # VJP: cotangents of the cells' displacements and coordinates, E summed
+    c = rng.normal(size=(n, 8))
+    (bu, bX, bh), bmp = k.vjp("update", (0,), (ue, Xe, he), mp, (c,))
+    ref = jax.vjp(lambda u, X, m: whole(u, X, m, he)[0].reshape(n, 8), ue, Xe, mp)[1](c)
+    for got, want in ((bu, ref[0]), (bX, ref[1]), (bmp["E"], ref[2]["E"])):
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+
+
+def test_kinds_are_shared_and_keyed_by_content():
+    a = CellKernels.of(LinearElastic(), kinematics.PLANE_STRAIN, element.Standard())
+    b = CellKernels.of(LinearElastic(), kinematics.PLANE_STRAIN, element.Standard())
+    c = CellKernels.of(LinearElastic(E="E2"), kinematics.PLANE_STRAIN, element.Standard())
+    assert a is b and a is not c and a.key and a.key != c.key
