@@ -216,8 +216,7 @@ class Solution:
         the increment)."""
         m = self.model
         s = self._surface(surface)
-        fn = lambda w, p, t: m.contact_fields(w, p, t, surface)
-        val, sens = self.response(fn, i, key=("contact", surface))
+        val, sens = self._contact_fields(i, surface)
         out = {"node": s.nodes, "x_ref": self.reference()[s.nodes], "x": self.current(i)[s.nodes]}
         out.update({k: np.asarray(v) for k, v in val.items()})
         for name, d in sens.items():
@@ -232,13 +231,39 @@ class Solution:
             out["slip"] = np.asarray(gt)
         return out
 
+    def _directions(self, i: int):
+        """(w_dot (k, n_dof), unit tangents e) of increment i's sensitivities."""
+        inc = self._inc(i)
+        return (np.stack([inc.sens[n] for n in self.names]),
+                unit_tangents(self.jax_params, self.names))
+
+    def _contact_fields(self, i: int, surface: int):
+        """(gap, p_N, p_T, area of a surface's nodes, {name: their derivatives}),
+        through the contact kind's programs (JVP along the DDM sensitivities)."""
+        m, inc = self.model, self._inc(i)
+        val = m.compiled.fields(inc.w, self.jax_params, inc.t, surface)
+        if not self.names:
+            return val, {}
+        wd, e = self._directions(i)
+        _, per = m.contact_jvp("fields", (0, 1, 2), inc.w, self.jax_params, inc.t, None, wd, e)
+        g, pN, pT = per[surface]
+        return val, {n: {"gap": g[k], "p_N": pN[k], "p_T": pT[k]} for k, n in enumerate(self.names)}
+
     def stress(self, i: int = -1):
-        """Element-averaged Cauchy stress (n_cells, 3, 3) and its sensitivities."""
-        if self.model.n_state:  # plasticity: the stress also depends on the history
-            return self.history_response(lambda w, p, t, st: self.model.stresses(w, p, st), i,
-                                         key=("stress-history",))
-        val, sens = self.response(lambda w, p, t: self.model.stresses(w, p), i, key=("stress",))
-        return val, sens
+        """Element-averaged Cauchy stress (n_cells, 3, 3) and its sensitivities
+        (with a material history: the stress of the update from the state before
+        increment i, whose sensitivity the JVP carries too); through the element
+        kind's programs."""
+        m, inc = self.model, self._inc(i)
+        state, sdot = self.state_before(i) if m.n_state else (None, None)
+        ue, Xe, mp, he = m._cell_arrays(inc.w, self.jax_params, state)
+        (val,) = m.cells("stress", (0,), (ue, Xe, he), mp)
+        if not self.names:
+            return val, {}
+        wd, e = self._directions(i)
+        d = m.element_jvp("stress", (0,), inc.w, self.jax_params, state, wd, e, sdot)
+        return val, {n: (np.zeros_like(val) if d is None else d[0][k])
+                     for k, n in enumerate(self.names)}
 
     def history_response(self, fn: Callable, i: int = -1, key=None):
         """Value and DDM sensitivities of F = fn(w, params, t, state_n) for a quantity

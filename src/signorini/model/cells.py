@@ -16,7 +16,8 @@ from .chunks import Chunked
 class CellKernels(Chunked):
     """The element programs of one kind: ``CellKernels.of(material, kinematics,
     formulation)``. Kernels: ``"update"`` -> (r (8,), h (4, n_state)) and
-    ``"tangent"`` -> (r (8,), K (8, 8), h)."""
+    ``"tangent"`` -> (r (8,), K (8, 8), h), ``"stress"`` -> (element-averaged
+    Cauchy stress (3, 3),)."""
 
     #: cells per chunk: chunks of 4096 while that many cells are left, the rest in
     #: chunks of 512. From ``benchmarks/study_chunking.py`` (docs/benchmarks.md):
@@ -35,4 +36,6 @@ class CellKernels(Chunked):
             return update
         if name == "tangent":
             return lambda items, mp: element.element_residual_tangent(*items[:2], m, mp, items[2], k, f)
+        if name == "stress":
+            return lambda items, mp: (element.element_stress(*items[:2], m, mp, items[2], k, f),)
         raise KeyError(f"no element kernel {name!r}")

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._jax import jax
+
 from ..contact.area import nodal_normals
 
 
@@ -33,13 +35,18 @@ class ModelContactNodes:
                         c.method.values(params)))
         return self.external_forces(X, params, t), tuple(out)
 
+    def contact_geometry(self, params, t):
+        """:meth:`_contact_geometry_impl`, compiled (t as float64: one program)."""
+        return self._contact_geometry(params, np.float64(t))
+
     def external_force_vector(self, params, t) -> np.ndarray:
         """(n_dof,) the external forces at t (from the same program as the contact
         geometry: one program per model for both)."""
-        return np.asarray(self._contact_geometry(params, t)[0])
+        return np.asarray(self.contact_geometry(params, t)[0])
 
-    def _node_items(self, i: int, w, geometry, state_n, history: bool = True):
-        """(items, shared) of surface i's nodes for its contact kind's programs."""
+    def _node_items(self, i: int, w, geometry, state_n, history: bool = True, cases=None):
+        """(items, shared) of surface i's nodes for its contact kind's programs
+        (``cases``: the case flags of every surface, held fixed, or None)."""
         s = self.surfaces[i]
         A, XS, NS, geo, cp = geometry[i]
         XS = np.asarray(XS)
@@ -49,12 +56,66 @@ class ModelContactNodes:
         if history and s.has_history:
             self._node_history(i, state_n)  # a clear error without a state
             hs = (np.asarray(state_n[1][i]), np.asarray(s.tangential, dtype=float))
-        return (x, lam, np.asarray(A), XS, np.asarray(NS), hs), (geo, cp)
+        items = (x, lam, np.asarray(A), XS, np.asarray(NS), hs)
+        if hs is not None and cases is not None:
+            items += (jax.tree_util.tree_map(np.asarray, cases[i]),)
+        return items, (geo, cp)
+
+    def _node_dots(self, i: int, w_dot, geometry_dot, state_dot_n):
+        """The tangents of :meth:`_node_items` along batched directions: (items'
+        (k, nc, ...) or None, shared's) from w_dot (k, n_dof), the geometry's JVP
+        and the state's sensitivity."""
+        s = self.surfaces[i]
+        k = w_dot.shape[0]
+        _, dA, dXS, dNS, dgeo, dcp = (None,) + tuple(geometry_dot[1][i])
+        dXS = np.asarray(dXS)
+        dx = dXS + w_dot[:, : 2 * self.n_nodes].reshape(k, -1, 2)[:, s.nodes]
+        dlam = w_dot[:, s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(
+            k, s.nodes.size, s.n_mult)
+        dhs = None
+        if s.has_history:
+            dsn = np.zeros((k, s.nodes.size)) if state_dot_n is None else np.asarray(state_dot_n[1][i])
+            dhs = (dsn, np.zeros((k, s.nodes.size)))
+        return (dx, dlam, np.asarray(dA), dXS, np.asarray(dNS), dhs), (dgeo, dcp)
+
+    def contact_jvp(self, name: str, outs: tuple, w, params, t, state_n, w_dot, e,
+                    state_dot_n=None, cases=None, geometry_dot=None):
+        """Per surface: the JVP of the contact kernel ``name``'s outputs ``outs``
+        along the batched tangents (w_dot (k, n_dof), e, state_dot_n), a tuple of
+        (k, nc, ...) arrays; the case flags ``cases`` held fixed if given.
+        Returns (the external forces' JVP (k, n_dof), [per surface])."""
+        w, w_dot = np.asarray(w), np.asarray(w_dot)
+        geometry = self.contact_geometry(params, t)[1]
+        if geometry_dot is None:
+            geometry_dot = self._contact_geometry_jvp(params, np.float64(t), e)
+        out = []
+        for i, s in enumerate(self.surfaces):
+            # the fields (gap, tractions) read no history
+            items, shared = self._node_items(i, w, geometry, state_n, name != "fields", cases)
+            dots, sdots = self._node_dots(i, w_dot, geometry_dot, state_dot_n)
+            dots = dots[:5] + ((dots[5],) if items[5] is not None else (None,))
+            dots += (None,) * (len(items) - len(dots))
+            out.append(self.node_kernels[i].jvp(name, outs, items, shared, dots + (sdots,)))
+        return np.asarray(geometry_dot[0]), out
+
+    def contact_pseudo_load(self, w, params, t, state_n, w_dot, e, state_dot_n, cases):
+        """(k, n_dof) JVP of the residual of the contact and external forces."""
+        fext_dot, per = self.contact_jvp("residual", (0,), w, params, t, state_n, w_dot, e,
+                                         state_dot_n, cases)
+        P = -fext_dot
+        for s, (dr,) in zip(self.surfaces, per):
+            for j in range(P.shape[0]):
+                P[j] += np.bincount(s.dofs.ravel(), weights=dr[j].ravel(), minlength=self.n_dof)
+        return P
+
+    def _contact_geometry_jvp_impl(self, params, t, e):
+        return jax.vmap(lambda d: jax.jvp(lambda p: self._contact_geometry_impl(p, t),
+                                          (params,), (d,))[1])(e)
 
     def contact_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,) of the contact and external forces, [Kc_s (nc_s, k, k)])."""
         w = np.asarray(w)
-        fext, geometry = self._contact_geometry(params, t)
+        fext, geometry = self.contact_geometry(params, t)
         R = -np.asarray(fext)
         blocks = []
         for i, s in enumerate(self.surfaces):
@@ -67,7 +128,7 @@ class ModelContactNodes:
     def contact_residual(self, w, params, t, state_n=None):
         """(n_dof,) the residual of the contact and external forces."""
         w = np.asarray(w)
-        fext, geometry = self._contact_geometry(params, t)
+        fext, geometry = self.contact_geometry(params, t)
         R = -np.asarray(fext)
         for i, s in enumerate(self.surfaces):
             items, shared = self._node_items(i, w, geometry, state_n)
@@ -78,7 +139,7 @@ class ModelContactNodes:
     def _cases_eager(self, w, params, t, state_n):
         """:meth:`cases` (NumPy) from the contact kinds' programs."""
         w = np.asarray(w)
-        geometry = self._contact_geometry(params, t)[1]
+        geometry = self.contact_geometry(params, t)[1]
         out = []
         for i, s in enumerate(self.surfaces):
             if not s.has_history:
@@ -91,7 +152,7 @@ class ModelContactNodes:
     def _fields_eager(self, w, params, t, surface: int = 0):
         """:meth:`contact_fields` (NumPy) from the contact kind's programs."""
         w = np.asarray(w)
-        geometry = self._contact_geometry(params, t)[1]
+        geometry = self.contact_geometry(params, t)[1]
         items, shared = self._node_items(surface, w, geometry, None, history=False)
         g, pN, pT = self.node_kernels[surface]("fields", (0, 1, 2), items, shared)
         return {"gap": g, "p_N": pN, "p_T": pT, "area": items[2]}

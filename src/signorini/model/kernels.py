@@ -148,6 +148,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
                              for s, lin in zip(layout.surfaces, self.linear_contact)]
         # what they take that depends on the parameters and t only (small, per model)
         self._contact_geometry = program(self._contact_geometry_impl, "contact_geometry")
+        self._contact_geometry_jvp = program(self._contact_geometry_jvp_impl, "contact_geometry_jvp")
         self._update_contact = program(
             lambda w, p, t, s: self.update(w, p, t, s, "contact"), "update_contact")
         self.compiled = Compiled(

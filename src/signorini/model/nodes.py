@@ -3,10 +3,11 @@
 
 A kind is a contact method x an obstacle x its kinematics (linearised or
 not). An item is a contact node: ``items = (x (2,), lam (m,), A (), X (2,),
-N (2,), history)`` (current position, multipliers, area, reference position
-and outward normal, and for friction the pair (s_n, tangential mask)); the
-obstacle geometry and the method's values, ``(geo, cp)``, are shared by the
-nodes of a surface.
+N (2,), history[, case flags])`` (current position, multipliers, area,
+reference position and outward normal, for friction the pair (s_n, tangential
+mask), and the case flags when the caller holds them fixed: the DDM and the
+adjoint take the converged tangent's); the obstacle geometry and the method's
+values, ``(geo, cp)``, are shared by the nodes of a surface.
 """
 
 from __future__ import annotations
@@ -30,7 +31,9 @@ class NodeKernels(Chunked):
         method, obstacle, linear = self.parts
 
         def at(items, shared):
-            x, lam, A, X0, N0, hs = items
+            x, lam, A, X0, N0, hs = items[:6]
+            if len(items) > 6:  # case flags given
+                hs = tuple(hs) + (items[6],)
             ob = Linearized(obstacle, X0, N0) if linear else obstacle
             return x, lam, A, ob, hs, shared[0], shared[1]
 

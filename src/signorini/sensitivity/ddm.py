@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jax import jax, to_device
+from .._jax import jax
 from ..errors import NonDifferentiableError
 from ..params import unit_tangents
 
@@ -58,15 +58,7 @@ class DDM:
         def wp_dot(params, t, e):
             return jax.jvp(lambda p: model.prescribed_values(p, t), (params,), (e,))[1]
 
-        def pseudo(w, params, t, state_n, cases, w_dot, e, state_dot_n):
-            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_, cases, "rest")
-            return jax.jvp(f, (w, params, state_n), (w_dot, e, state_dot_n))[1]
-
         self._wp_dot = model.program(jax.vmap(wp_dot, (None, None, 0)), "ddm_wp_dot")
-        # the pseudo-load of the contact and external forces (per model); that of the
-        # internal forces comes from the element kind's programs (Model.element_jvp)
-        self._pseudo_rest = model.program(
-            jax.vmap(pseudo, (None, None, None, None, None, 0, 0, 0)), "ddm_pseudo_rest")
         # Names whose pseudo-load has no internal-force part can skip the element
         # kernels (the costly half of a pseudo-load): those that enter neither the
         # material nor the shape, nor a prescribed displacement, nor (plasticity)
@@ -165,9 +157,8 @@ class DDM:
         """(n_names, n_dof) pseudo-loads; element kernels only for the names that
         need them."""
         m = self.model
-        strip = m.without_material
-        P = np.array(self._pseudo_rest(w, params, t, strip(state_n), cases, to_device(w_dot), e,
-                                       strip(state_dot_n)))
+        # the contact and external forces' part: the contact kinds' programs
+        P = m.contact_pseudo_load(w, params, t, state_n, w_dot, e, state_dot_n, cases)
         moves = np.any(w_dot[:, m.prescribed] != 0.0, axis=1) if m.prescribed.size else \
             np.zeros(len(self.names), bool)
         if self._element_names is None:
