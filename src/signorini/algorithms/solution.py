@@ -261,9 +261,8 @@ class Solution:
         if not self.names:
             return val, {}
         wd, e = self._directions(i)
-        d = m.element_jvp("stress", (0,), inc.w, self.jax_params, state, wd, e, sdot)
-        return val, {n: (np.zeros_like(val) if d is None else d[0][k])
-                     for k, n in enumerate(self.names)}
+        (d,) = m.element_jvp("stress", (0,), inc.w, self.jax_params, state, wd, e, sdot)
+        return val, {n: d[k] for k, n in enumerate(self.names)}
 
     def history_response(self, fn: Callable, i: int = -1, key=None):
         """Value and DDM sensitivities of F = fn(w, params, t, state_n) for a quantity

@@ -20,11 +20,12 @@ class CellKernels(Chunked):
     Cauchy stress (3, 3),)."""
 
     #: cells per chunk: chunks of 4096 while that many cells are left, the rest in
-    #: chunks of 512. From ``benchmarks/study_chunking.py`` (docs/benchmarks.md):
-    #: chunks of 4096 cost 0.6-0.7x of one vmap over the whole mesh per cell from
-    #: 56k DOFs up (a chunk's intermediates stay in cache), and 512 bounds the
-    #: padding of a small mesh
-    SIZES = (4096, 512)
+    #: chunks of 128, the chunks run side by side on the cores. From
+    #: ``benchmarks/study_chunking.py`` (docs/benchmarks.md): chunks of 4096 cost
+    #: 0.5-0.7x of one vmap over the whole mesh per cell from 14k DOFs up (a
+    #: chunk's intermediates stay in cache); 128 bounds the padding of a small
+    #: mesh and gives it chunks to share out (the forging's 200 cells: two)
+    SIZES = (4096, 128)
 
     def _kernel(self, name: str):
         m, k, f = self.parts

@@ -19,6 +19,9 @@ any kernel: the DDM pseudo-loads and the adjoint's transposed products.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from .._jax import jax
@@ -40,6 +43,19 @@ def plan(n: int, sizes: tuple[int, int]) -> list[tuple[int, int]]:
         out.append((start, small))
         start += small
     return out
+
+
+_POOL: list = []
+
+
+def _pool() -> ThreadPoolExecutor:
+    """The threads that run chunks side by side (one per core): a program runs
+    on the thread that calls it, so chunks called from several threads use
+    several cores."""
+    if not _POOL:
+        _POOL.append(ThreadPoolExecutor(max(1, os.cpu_count() or 1),
+                                        thread_name_prefix="signorini-chunks"))
+    return _POOL[0]
 
 
 def _concat(parts, axis: int):
@@ -114,11 +130,13 @@ class Chunked:
         return p
 
     # -------------------------------------------------------------- running
-    def _run(self, n: int, call, items, dots=(), zero=()):
-        """``call(items chunk, dots chunk)`` over the chunks of n items: ``items``
-        cut on axis 0 (pytrees, None kept), ``dots`` on axis 1; in ``zero`` (indices
-        into items) the padding is zero instead of copies. Returns [(valid, out)]."""
-        results = []
+    def _run(self, n: int, prog, call, items, dots=(), zero=()):
+        """``call(items chunk, dots chunk)`` of program ``prog`` over the chunks of n
+        items: ``items`` cut on axis 0 (pytrees, None kept), ``dots`` on axis 1; in
+        ``zero`` (indices into items) the padding is zero instead of copies. The
+        chunks run side by side on the cores (:func:`_pool`). Returns
+        [(valid, outputs or a future of them)]: :meth:`_done` waits for them."""
+        chunks = []
         for start, size in plan(n, self.SIZES):
             valid = min(size, n - start)
             index = np.arange(start, start + size)
@@ -129,15 +147,36 @@ class Chunked:
                 if j in zero and valid < size:
                     c = tree_map(lambda x: _zero_tail(x, valid), c)
                 chunk.append(c)
-            dchunk = tree_map(lambda x: np.take(x, index, axis=1), dots)
-            results.append((valid, call(tuple(chunk), dchunk)))
-        return results
+            chunks.append((valid, tuple(chunk), tree_map(lambda x: np.take(x, index, axis=1), dots)))
+        if len(chunks) == 1:
+            return [(chunks[0][0], call(chunks[0][1], chunks[0][2]))]
+        # build every executable here (once), then run the chunks from the pool's threads
+        for size in {c[1][0].shape[0] if c[1][0] is not None else None for c in chunks}:
+            first = next(c for c in chunks if c[1][0] is None or c[1][0].shape[0] == size)
+            call(first[1], first[2], prepare=True)
+        run = lambda c: jax.block_until_ready(call(c[1], c[2]))
+        return [(c[0], f) for c, f in zip(chunks, [_pool().submit(run, c) for c in chunks])]
+
+    @staticmethod
+    def _done(pending):
+        """[(valid, outputs)] of :meth:`_run`'s result (futures waited for)."""
+        return [(v, r.result() if hasattr(r, "result") else r) for v, r in pending]
 
     def __call__(self, name: str, outs: tuple, items: tuple, shared):
         """The kernel's outputs ``outs`` for every item: a tuple of (n, ...) arrays."""
+        return self.finish(self.start(name, outs, items, shared))
+
+    def start(self, name: str, outs: tuple, items: tuple, shared):
+        """Dispatch :meth:`__call__`'s work and return at once (it runs in the
+        background): :meth:`finish` waits for it and returns the outputs. The
+        caller does other work in between (the contact kernels beside the cells')."""
         prog = self._program("primal", name, outs)
-        res = self._run(_count(items), lambda c, _: prog(c, shared), items)
-        return _concat([tree_map(lambda a, v=v: np.asarray(a)[:v], r) for v, r in res], 0)
+        return self._run(_count(items), prog, _caller(prog, lambda c, _: (c, shared)), items)
+
+    def finish(self, pending):
+        """The outputs of a :meth:`start`: a tuple of (n, ...) arrays."""
+        return _concat([tree_map(lambda a, v=v: np.asarray(a)[:v], r)
+                        for v, r in self._done(pending)], 0)
 
     def jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
         """Derivatives of the outputs ``outs`` along ``dots`` (one per item argument,
@@ -149,12 +188,9 @@ class Chunked:
         prog = self._program("jvp", name, outs, mask)
         item_dots = tuple(d for d in dots[:-1] if d is not None)
         shared_dot = dots[-1]
-
-        def call(c, dc):
-            d = list(dc) + ([shared_dot] if shared_dot is not None else [])
-            return prog(c, shared, tuple(d))
-
-        res = self._run(_count(items), call, items, item_dots)
+        extra = [shared_dot] if shared_dot is not None else []
+        args = lambda c, dc: (c, shared, tuple(list(dc) + extra))
+        res = self._done(self._run(_count(items), prog, _caller(prog, args), items, item_dots))
         return _concat([tree_map(lambda a, v=v: np.asarray(a)[:, :v], r) for v, r in res], 1)
 
     def vjp(self, name: str, outs: tuple, items: tuple, shared, cot: tuple):
@@ -162,11 +198,21 @@ class Chunked:
         of the outputs ``outs`` with cotangents ``cot`` (a tuple of (n, ...) arrays)."""
         prog = self._program("vjp", name, outs)
         k = len(items)
-        res = self._run(_count(items), lambda c, _: prog(c[:k], shared, c[k:]),
-                        tuple(items) + tuple(cot), zero=tuple(range(k, k + len(cot))))
+        args = lambda c, _: (c[:k], shared, c[k:])
+        res = self._done(self._run(_count(items), prog, _caller(prog, args),
+                                   tuple(items) + tuple(cot), zero=tuple(range(k, k + len(cot)))))
         items_bar = _concat([tree_map(lambda a, v=v: np.asarray(a)[:v], r[0]) for v, r in res], 0)
         shared_bar = tree_map(lambda *a: sum(np.asarray(x) for x in a), *[r[1] for _, r in res])
         return items_bar, shared_bar
+
+
+def _caller(prog, args):
+    """call(chunk, dots chunk, prepare=False): run ``prog`` on ``args(chunk, dots)``,
+    or only build its executable."""
+    def call(c, dc, prepare=False):
+        a = args(c, dc)
+        return prog.prepare(*a) if prepare else prog(*a)
+    return call
 
 
 def _count(items) -> int:

@@ -79,15 +79,14 @@ class ModelContactNodes:
         return (dx, dlam, np.asarray(dA), dXS, np.asarray(dNS), dhs), (dgeo, dcp)
 
     def contact_jvp(self, name: str, outs: tuple, w, params, t, state_n, w_dot, e,
-                    state_dot_n=None, cases=None, geometry_dot=None):
+                    state_dot_n=None, cases=None):
         """Per surface: the JVP of the contact kernel ``name``'s outputs ``outs``
         along the batched tangents (w_dot (k, n_dof), e, state_dot_n), a tuple of
         (k, nc, ...) arrays; the case flags ``cases`` held fixed if given.
         Returns (the external forces' JVP (k, n_dof), [per surface])."""
         w, w_dot = np.asarray(w), np.asarray(w_dot)
-        geometry = self.contact_geometry(params, t)[1]
-        if geometry_dot is None:
-            geometry_dot = self._contact_geometry_jvp(params, np.float64(t), e)
+        # the geometry and its tangents from one program
+        (_, geometry), geometry_dot = self._contact_geometry_jvp(params, np.float64(t), e)
         out = []
         for i, s in enumerate(self.surfaces):
             # the fields (gap, tractions) read no history
@@ -109,8 +108,9 @@ class ModelContactNodes:
         return P
 
     def _contact_geometry_jvp_impl(self, params, t, e):
-        return jax.vmap(lambda d: jax.jvp(lambda p: self._contact_geometry_impl(p, t),
-                                          (params,), (d,))[1])(e)
+        """(the contact geometry, its JVPs batched over the tangents e)."""
+        f = lambda p: self._contact_geometry_impl(p, t)
+        return f(params), jax.vmap(lambda d: jax.jvp(f, (params,), (d,))[1])(e)
 
     def contact_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,) of the contact and external forces, [Kc_s (nc_s, k, k)])."""

@@ -57,12 +57,19 @@ class ModelElements:
     def element_history(self, w, params, state_n):
         """The updated Gauss-point history (n, 4, n_state) after convergence at w."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
-        return self.cells("update", (1,), (ue, Xe, he), mp)[0]
+        return self.cells("update", (0, 1), (ue, Xe, he), mp)[1]  # one program for both
 
     def element_tangents(self, w, params, state_n=None):
         """(internal forces (n_dof,), element tangents (n, 8, 8))."""
+        return self.element_tangents_finish(self.element_tangents_start(w, params, state_n))
+
+    def element_tangents_start(self, w, params, state_n=None):
+        """Dispatch :meth:`element_tangents` (JAX computes while the caller goes on)."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
-        re, Ke = self.cells("tangent", (0, 1), (ue, Xe, he), mp)
+        return self.cells.start("tangent", (0, 1), (ue, Xe, he), mp)
+
+    def element_tangents_finish(self, pending):
+        re, Ke = self.cells.finish(pending)
         return self.scatter(re), Ke
 
     def _element_stiffness_cells(self, params) -> np.ndarray:
@@ -76,39 +83,32 @@ class ModelElements:
         return self.scatter(np.matmul(Ke, ue[:, :, None])[:, :, 0])
 
     # ---------------------------------------------------------- derivatives
-    def parameter_dots(self, params, e):
-        """(dX (k, n_nodes, 2) or None, dmp (dict of (k,)) or None): the
-        reference coordinates' and material values' derivatives along the batched
-        parameter tangents ``e`` (None where zero)."""
-        dX, dmp = self._parameter_jvp(params, e)
-        dX = np.asarray(dX)
-        dmp = {k: np.asarray(v) for k, v in dmp.items()}
-        return (dX if np.any(dX) else None), (dmp if any(np.any(v) for v in dmp.values()) else None)
-
-    def element_jvp(self, name: str, outs: tuple, w, params, state_n, w_dot, e, state_dot_n,
-                    hold_w: bool = False):
+    def element_jvp(self, name: str, outs: tuple, w, params, state_n, w_dot, e, state_dot_n):
         """JVP of the element outputs ``outs`` of kernel ``name`` along the batched
-        tangents (w_dot (k, n_dof), e, state_dot_n), per cell ((k, n, ...) each);
-        ``hold_w``: the displacements held (w_dot ignored)."""
+        tangents (w_dot (k, n_dof) or None: the displacements held, e, state_dot_n),
+        per cell ((k, n, ...) each).
+
+        Which tangents are passed is fixed by the model, not by their values (a
+        program per pattern: the heavy kernels are compiled once): the
+        displacements' whenever w_dot is given, the coordinates' when the model has
+        shape parameters, the material values' always, the history's when the
+        material has one (zero when the state's sensitivity is not given)."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
-        dX, dmp = self.parameter_dots(params, e)
-        k = len(next(iter(e.values()))) if e else np.asarray(w_dot).shape[0]
-        du = None
-        if not hold_w and w_dot is not None:
-            wd = np.asarray(w_dot)
-            if np.any(wd):
-                du = wd[:, self.edofs].reshape(k, -1, 4, 2)
-        dXe = None if dX is None else dX[:, self.conn]
+        dX, dmp = self._parameter_jvp(params, e)
+        k = len(next(iter(e.values())))
+        du = None if w_dot is None else np.asarray(w_dot)[:, self.edofs].reshape(k, -1, 4, 2)
+        dXe = np.asarray(dX)[:, self.conn] if self.shape_names else None
         dh = None
-        if self.n_state and state_dot_n is not None and state_dot_n[2] is not None:
-            dh = np.asarray(state_dot_n[2])
-            dh = dh if np.any(dh) else None
+        if self.n_state:
+            sd = None if state_dot_n is None else state_dot_n[2]
+            dh = np.zeros((k,) + he.shape) if sd is None else np.asarray(sd)
+        dmp = {key: np.asarray(v) for key, v in dmp.items()}
         return self.cells.jvp(name, outs, (ue, Xe, he), mp, (du, dXe, dh, dmp))
 
     def element_vjp(self, name: str, outs: tuple, w, params, state_n, cot):
         """Cotangents of (w (n_dof,), params (pytree like ``params``), Gauss-point
         history (n, 4, n_state) or None) of the element outputs ``outs`` of kernel
-        ``name`` with per-cell cotangents ``cot``."""
+        ``name`` with per-cell cotangents ``cot`` (one per output)."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
         (du, dXe, dh), dmp = self.cells.vjp(name, outs, (ue, Xe, he), mp, cot)
         w_bar = self.scatter(du.reshape(-1, 8))

@@ -366,12 +366,14 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
 
     def local_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
+        # the cells' programs first: they run while the contact part is computed
+        pending = None if self.linear_elements else self.element_tangents_start(w, params, state_n)
         R, blocks = self.contact_tangents(w, params, t, state_n)
         if self.linear_elements:
             Ke = self.element_stiffness(params)
             R_el = self.linear_forces_np(Ke, w)
         else:
-            R_el, Ke = self.element_tangents(w, params, state_n)
+            R_el, Ke = self.element_tangents_finish(pending)
         return R_el + R, [Ke] + blocks
 
     def _residual_eager(self, w, params, t, state_n=None):

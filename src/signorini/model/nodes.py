@@ -25,7 +25,7 @@ class NodeKernels(Chunked):
 
     #: nodes per chunk: contact surfaces hold a few hundred to a few thousand
     #: nodes, whose kernels cost little next to the cells'
-    SIZES = (1024, 128)
+    SIZES = (1024, 64)
 
     def _kernel(self, name: str):
         method, obstacle, linear = self.parts

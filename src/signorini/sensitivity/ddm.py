@@ -178,9 +178,7 @@ class DDM:
                 k = np.array([j for j in k if j != prop[0]], dtype=int)
         if k.size:
             sub = jax.tree_util.tree_map(lambda a: np.asarray(a)[k], (w_dot, e, state_dot_n))
-            d = m.element_jvp("update", (0,), w, params, state_n, *sub)
-            if d is not None:
-                P[k] += m.scatter(d[0])
+            P[k] += m.scatter(m.element_jvp("update", (0,), w, params, state_n, *sub)[0])
         return P
 
     def _internal_forces(self, w, params) -> np.ndarray:
@@ -202,9 +200,8 @@ class DDM:
         names = tuple(self.names[j] for j in mat)
         if mat and (self._dke is None or self._dke[:2] != (key, names)):
             e = unit_tangents(params, list(names))
-            d = m.element_jvp("tangent", (1,), np.zeros(m.n_dof), params, None, None, e, None)
-            self._dke = (key, names, np.zeros((len(names),) + m.edofs.shape + (8,)) if d is None
-                         else d[0])
+            self._dke = (key, names, m.element_jvp("tangent", (1,), np.zeros(m.n_dof), params,
+                                                    None, None, e, None)[0])
         Ke = m.element_stiffness(params)
         ue = np.asarray(w)[m.edofs]
         flat = m.edofs.ravel()
