@@ -171,6 +171,7 @@ class Chunked:
         background): :meth:`finish` waits for it and returns the outputs. The
         caller does other work in between (the contact kernels beside the cells')."""
         prog = self._program("primal", name, outs)
+        shared = jax.device_put(shared)  # once, not per chunk
         return self._run(_count(items), prog, _caller(prog, lambda c, _: (c, shared)), items)
 
     def finish(self, pending):
@@ -186,6 +187,7 @@ class Chunked:
         if not any(mask):
             return None
         prog = self._program("jvp", name, outs, mask)
+        shared, dots = jax.device_put(shared), dots[:-1] + (jax.device_put(dots[-1]),)
         item_dots = tuple(d for d in dots[:-1] if d is not None)
         shared_dot = dots[-1]
         extra = [shared_dot] if shared_dot is not None else []
@@ -197,6 +199,7 @@ class Chunked:
         """Cotangents (of ``items`` (per item), of ``shared`` (summed over the items))
         of the outputs ``outs`` with cotangents ``cot`` (a tuple of (n, ...) arrays)."""
         prog = self._program("vjp", name, outs)
+        shared = jax.device_put(shared)
         k = len(items)
         args = lambda c, _: (c[:k], shared, c[k:])
         res = self._done(self._run(_count(items), prog, _caller(prog, args),

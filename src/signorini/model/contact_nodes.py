@@ -36,8 +36,15 @@ class ModelContactNodes:
         return self.external_forces(X, params, t), tuple(out)
 
     def contact_geometry(self, params, t):
-        """:meth:`_contact_geometry_impl`, compiled (t as float64: one program)."""
-        return self._contact_geometry(params, np.float64(t))
+        """:meth:`_contact_geometry_impl`, compiled (t as float64: one program);
+        the last result is kept for the same parameter dict and t (every Newton
+        evaluation of an increment asks for it)."""
+        last = getattr(self, "_geometry_last", None)
+        if last is not None and last[0] is params and last[1] == float(t):
+            return last[2]
+        out = self._contact_geometry(params, np.float64(t))
+        self._geometry_last = (params, float(t), out)
+        return out
 
     def external_force_vector(self, params, t) -> np.ndarray:
         """(n_dof,) the external forces at t (from the same program as the contact
