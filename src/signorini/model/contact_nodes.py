@@ -61,7 +61,8 @@ class ModelContactNodes:
         lam = w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
         hs = None
         if history and s.has_history:
-            self._node_history(i, state_n)  # a clear error without a state
+            if state_n is None:
+                self._node_history(i, state_n)  # raises the error that names the missing state
             hs = (np.asarray(state_n[1][i]), np.asarray(s.tangential, dtype=float))
         items = (x, lam, np.asarray(A), XS, np.asarray(NS), hs)
         if hs is not None and cases is not None:
