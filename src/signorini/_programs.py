@@ -36,12 +36,14 @@ import pickle
 import platform
 import tempfile
 import time
+import warnings
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
 from ._jax import cache_root, jax
+from .errors import SignoriniWarning
 from jax.core import Tracer
 
 log = logging.getLogger("signorini")
@@ -54,6 +56,18 @@ LOAD_EVENT = "/signorini/program_load"
 
 #: per process: programs compiled here, loaded from disk, saved, rebuilt, evicted
 STATS: Counter = Counter()
+#: what was wrong with the cache's settings or directory (each said once per process)
+WARNINGS: list[str] = []
+
+
+def warn_once(message: str) -> None:
+    """A :class:`~signorini.errors.SignoriniWarning` about the cache, issued once
+    per process and kept in :data:`WARNINGS` (every command's summary.json lists
+    them): a cache that cannot be used makes runs slower, never wrong."""
+    if message in WARNINGS:
+        return
+    WARNINGS.append(message)
+    warnings.warn(message, SignoriniWarning, stacklevel=3)
 
 
 def programs_dir() -> Path | None:
@@ -254,16 +268,26 @@ class Program:
                 raise
             STATS["saved"] += 1
             _evict(path.parent, keep=path)
+        except OSError as e:  # a cache that cannot be written is only slower
+            warn_once(f"compiled programs cannot be kept in {path.parent} ({e.strerror or e}): "
+                      "every run compiles them again; set SIGNORINI_CACHE_DIR to a writable "
+                      "directory (or to an empty value to switch the caches off)")
         except Exception as e:  # noqa: BLE001  (a cache that cannot be written is only slower)
             log.debug("could not keep program %s: %s", self.name, e)
 
 
 def max_bytes() -> int:
     """The cap of the kept programs' total size (``$SIGNORINI_CACHE_MAX_MB``, default 2048)."""
+    text = os.environ.get("SIGNORINI_CACHE_MAX_MB", "2048")
     try:
-        return int(float(os.environ.get("SIGNORINI_CACHE_MAX_MB", "2048")) * 2**20)
+        mb = float(text)
+        if not mb >= 0 or mb == float("inf"):
+            raise ValueError
     except ValueError:
-        return 2048 * 2**20
+        warn_once(f"SIGNORINI_CACHE_MAX_MB={text!r} is not a size in MB (a number >= 0); "
+                  "using the default, 2048")
+        mb = 2048.0
+    return int(mb * 2**20)
 
 
 def _evict(d: Path, keep: Path) -> None:

@@ -172,3 +172,30 @@ def test_the_digest_does_not_depend_on_where_the_source_lives():
     b = stable_digest(structure_key(problem(source, "/srv/b/checkout/loads.py")))
     c = stable_digest(structure_key(problem(other, "/home/a/project/loads.py")))
     assert a is not None and a == b and a != c
+
+
+def test_bad_cache_settings_warn_once_and_land_in_the_summary(cache, monkeypatch, tmp_path):
+    """A cap that is not a size, or a cache directory that cannot be written, is
+    said once per process (a SignoriniWarning) and listed in summary.json; the
+    run itself is unaffected."""
+    from signorini.app.runner import write_summary_json
+    from signorini.errors import SignoriniWarning
+
+    monkeypatch.setattr(_programs, "WARNINGS", [])
+    monkeypatch.setenv("SIGNORINI_CACHE_MAX_MB", "lots")
+    with pytest.warns(SignoriniWarning, match="SIGNORINI_CACHE_MAX_MB='lots'"):
+        assert _programs.max_bytes() == 2048 * 2**20
+    _programs.max_bytes()  # said once
+    assert len(_programs.WARNINGS) == 1
+    blocked = tmp_path / "blocked"
+    blocked.write_text("a file where the cache directory should be")
+    monkeypatch.setenv("SIGNORINI_CACHE_DIR", str(blocked))
+    monkeypatch.setenv("SIGNORINI_CACHE_MAX_MB", "64")
+    with pytest.warns(SignoriniWarning, match="cannot be kept"):
+        sol, counts = _solve()
+    assert counts["saved"] == 0 and np.all(np.isfinite(sol.increments[-1].w))
+    out = tmp_path / "out"
+    out.mkdir()
+    summary = write_summary_json(out, {"warnings": ["from the solve"]})
+    assert summary["warnings"][0] == "from the solve" and len(summary["warnings"]) == 3
+    assert any("SIGNORINI_CACHE_MAX_MB" in w for w in summary["warnings"])

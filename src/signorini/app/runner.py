@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import timing
+from .. import _programs, timing
 from ..post import files as io
 from ..sensitivity import nonsmooth
 from ..errors import InputError
@@ -54,7 +54,11 @@ def write_summary(out: Path, summary: dict, solution) -> dict:
 
 
 def write_summary_json(out: Path, summary: dict) -> dict:
-    """summary.json, with the run's time split (:mod:`signorini.timing`) if one is kept."""
+    """summary.json, with the run's time split (:mod:`signorini.timing`) if one is
+    kept, and what was wrong with the caches of compiled programs (if anything)."""
+    if _programs.WARNINGS:
+        summary["warnings"] = list(summary.get("warnings", [])) + [
+            w for w in _programs.WARNINGS if w not in summary.get("warnings", [])]
     t = timing.current()
     if t is not None:
         summary["timings"] = t.split()
