@@ -359,7 +359,3 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             R, blocks = self._local(w, params, t, state_n, None, Ke)
         head = [] if Ke_np is None else [Ke_np]
         return np.asarray(R), head + [np.asarray(b) for b in blocks]
-
-
-
-
