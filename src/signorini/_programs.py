@@ -63,10 +63,13 @@ WARNINGS: list[str] = []
 def warn_once(message: str) -> None:
     """A :class:`~signorini.errors.SignoriniWarning` about the cache, issued once
     per process and kept in :data:`WARNINGS` (every command's summary.json lists
-    them): a cache that cannot be used makes runs slower, never wrong."""
+    them), and an INFO line of the ``signorini`` log (which the command shows, as
+    for every other warning): a cache that cannot be used makes runs slower,
+    never wrong."""
     if message in WARNINGS:
         return
     WARNINGS.append(message)
+    log.info("warning: %s", message)
     warnings.warn(message, SignoriniWarning, stacklevel=3)
 
 

@@ -57,8 +57,8 @@ def write_summary_json(out: Path, summary: dict) -> dict:
     """summary.json, with the run's time split (:mod:`signorini.timing`) if one is
     kept, and what was wrong with the caches of compiled programs (if anything)."""
     if _programs.WARNINGS:
-        summary["warnings"] = list(summary.get("warnings", [])) + [
-            w for w in _programs.WARNINGS if w not in summary.get("warnings", [])]
+        said = list(summary.get("warnings", []))
+        summary["warnings"] = said + [w for w in _programs.WARNINGS if w not in said]
     t = timing.current()
     if t is not None:
         summary["timings"] = t.split()

@@ -112,4 +112,3 @@ def stable_digest(key) -> str | None:
         return True
 
     return h.hexdigest() if feed(key) else None
-
