@@ -67,3 +67,72 @@ def test_kinds_are_shared_and_keyed_by_content():
     b = CellKernels.of(LinearElastic(), kinematics.PLANE_STRAIN, element.Standard())
     c = CellKernels.of(LinearElastic(E="E2"), kinematics.PLANE_STRAIN, element.Standard())
     assert a is b and a is not c and a.key and a.key != c.key
+
+
+# ------------------------------------------------------------------ both paths
+def _solve_both(monkeypatch, run):
+    """``run()`` on models evaluated by whole-mesh programs, then on models of the
+    same problems evaluated by the element and contact kinds' chunked programs."""
+    from collections import OrderedDict
+
+    from signorini.algorithms import stepping
+    from signorini.model.kernels import Model
+
+    monkeypatch.setattr(stepping, "_MODELS", OrderedDict())
+    whole = run()
+    assert not any(m.by_kind for m in stepping._MODELS.values())
+    monkeypatch.setattr(stepping, "_MODELS", OrderedDict())
+    monkeypatch.setattr(Model, "WHOLE_MESH_UP_TO", -1)
+    kinds = run()
+    assert all(m.by_kind for m in stepping._MODELS.values())
+    return whole, kinds
+
+
+def _rel(a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+
+
+@pytest.mark.parametrize("case", ["hertz", "friction", "forging"])
+def test_whole_mesh_and_kind_programs_give_the_same_solution(monkeypatch, case):
+    """A mesh is evaluated by its own whole-mesh programs (small meshes) or by the
+    programs of its element and contact kinds (large ones): the two give the
+    same solution, sensitivities (DDM, with a linear body's kept stiffness,
+    friction history and plastic history) and adjoint gradient, to round-off."""
+    import signorini as sg
+    from signorini.design.gradient import gradient
+    from signorini.problems import forging, hertz, hertz_friction
+
+    if case == "hertz":
+        pb, names, steps = hertz.hertz_problem(n_fine=8), ["R", "E", "P"], 2
+        resp = hertz.contact_work
+        opts = sg.NewtonOptions(rtol=1e-11)
+    elif case == "friction":
+        pb, names, steps = hertz_friction.hertz_friction_problem(n_fine=12), ["R", "mu", "E"], 3
+        resp = hertz.contact_work
+        opts = sg.NewtonOptions(rtol=1e-11)
+    else:
+        pb = forging.forging_problem(mesh=(4, 8))
+        names, steps = ["phi0", "phi2", "sigma_y", "mu"], 4
+        resp = lambda m: forging.objective(m, forging.lateral_nodes(pb))  # noqa: E731
+        opts = forging.options()
+
+    def run():
+        sol = sg.solve(pb, steps=steps, wrt=names, options=opts, solver="superlu")
+        a = gradient(pb, resp, names, method=sg.Adjoint(), steps=steps, options=opts,
+                     solver="superlu", solution=sol)
+        stress = sol.stress()
+        return sol, a, stress
+
+    (s1, a1, st1), (s2, a2, st2) = _solve_both(monkeypatch, run)
+    assert len(s1.increments) == len(s2.increments) == steps
+    for i1, i2 in zip(s1.increments, s2.increments):
+        assert i1.newton.iterations == i2.newton.iterations
+        assert _rel(i2.w, i1.w) < 1e-9
+        for n in names:
+            assert _rel(i2.sens[n], i1.sens[n]) < 1e-8, n
+    for n in names:
+        assert abs(a2[n] - a1[n]) <= 1e-8 * abs(a1[n]) + 1e-14, (n, a1[n], a2[n])
+    assert _rel(st2[0], st1[0]) < 1e-9
+    for n in names:
+        assert _rel(st2[1][n], st1[1][n]) < 1e-7, n

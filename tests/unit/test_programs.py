@@ -174,11 +174,20 @@ def test_the_digest_does_not_depend_on_where_the_source_lives():
     assert a is not None and a == b and a != c
 
 
-def test_one_program_per_kind_serves_every_mesh_size(cache):
-    """The element and contact kernels are compiled for their kind, not for a
-    mesh: solving (with sensitivities) on a second, finer mesh builds none of
-    the kind programs again, neither traced nor compiled nor loaded."""
+def test_one_program_per_kind_serves_every_mesh_size(cache, monkeypatch):
+    """The element and contact kernels of meshes larger than
+    Model.WHOLE_MESH_UP_TO cells (lowered here to 0: small meshes, cheap) are
+    compiled for their kind, not for a mesh: solving (with sensitivities) on a
+    second, finer mesh builds none of the kind programs again, neither traced
+    nor compiled nor loaded."""
+    from collections import OrderedDict
+
+    from signorini.algorithms import stepping
     from signorini.model.chunks import Chunked
+    from signorini.model.kernels import Model
+
+    monkeypatch.setattr(Model, "WHOLE_MESH_UP_TO", 0)
+    monkeypatch.setattr(stepping, "_MODELS", OrderedDict())
 
     def kind_programs():
         return {(type(k).__name__, spec): len(p._compiled)

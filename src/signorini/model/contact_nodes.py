@@ -145,7 +145,9 @@ class ModelContactNodes:
         return R
 
     def _cases_eager(self, w, params, t, state_n):
-        """:meth:`cases` (NumPy) from the contact kinds' programs."""
+        """:meth:`cases`: a whole-mesh program, or (NumPy) the contact kinds' programs."""
+        if not self.by_kind:
+            return self._cases_whole(w, params, t, state_n)
         w = np.asarray(w)
         geometry = self.contact_geometry(params, t)[1]
         out = []
@@ -158,7 +160,10 @@ class ModelContactNodes:
         return tuple(out)
 
     def _fields_eager(self, w, params, t, surface: int = 0):
-        """:meth:`contact_fields` (NumPy) from the contact kind's programs."""
+        """:meth:`contact_fields`: a whole-mesh program, or (NumPy) the contact kind's
+        programs."""
+        if not self.by_kind:
+            return self._fields_whole(w, params, t, surface)
         w = np.asarray(w)
         geometry = self.contact_geometry(params, t)[1]
         items, shared = self._node_items(surface, w, geometry, None, history=False)

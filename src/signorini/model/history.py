@@ -40,7 +40,10 @@ class ModelHistory:
         return (w, tuple(contact), material)
 
     def _update_eager(self, w, params, t, state_n):
-        """:meth:`update`, the Gauss-point history from the element kind's programs."""
+        """:meth:`update`: a whole-mesh program, or the Gauss-point history from the
+        element kind's programs."""
+        if not self.by_kind:
+            return self._update_whole(w, params, t, state_n)
         w_, contact, _ = self._update_contact(w, params, t, self.without_material(state_n))
         material = self.element_history(w, params, state_n) if self.n_state else None
         return (w_, contact, material)
@@ -48,6 +51,8 @@ class ModelHistory:
     def _update_jvp(self, w, params, t, state_n, w_dot, e, state_dot_n):
         """JVP of :meth:`update` along (w_dot, e, state_dot_n), batched over the
         directions (leading axis)."""
+        if not self.by_kind:
+            return self._update_jvp_whole(w, params, t, state_n, w_dot, e, state_dot_n)
         strip = self.without_material
         wd, contact, _ = self._update_contact_jvp(w, params, t, strip(state_n), w_dot, e,
                                                   strip(state_dot_n))

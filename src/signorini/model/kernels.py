@@ -139,25 +139,45 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         except TypeError:
             self.key = None
         program = self.program
-        # the element kernels: compiled once per element kind, shared by every mesh
+        # how the element and contact kernels are evaluated (docs/theory.md §10.6): on a
+        # mesh of at most WHOLE_MESH_UP_TO cells, by programs of this model over the whole
+        # mesh (gathers, kernels and scatters fused: one dispatch per Newton evaluation);
+        # on larger meshes by the programs of the element and contact kinds, compiled once
+        # for every mesh and run over chunks of cells and nodes
+        self.by_kind = len(self.conn) > self.WHOLE_MESH_UP_TO
         self.cells = CellKernels.of(p.material, self.kinematics, self.formulation)
         self._edofs_ravel = None
         self.cache: dict = {}
-        # the contact kernels: compiled once per contact kind (method, obstacle, kinematics)
         self.node_kernels = [NodeKernels.of(s.contact.method, s.contact.obstacle, lin)
                              for s, lin in zip(layout.surfaces, self.linear_contact)]
-        # what they take that depends on the parameters and t only (small, per model)
+        # what the kinds' programs take that depends on the parameters and t only
         self._contact_geometry = program(self._contact_geometry_impl, "contact_geometry")
         self._contact_geometry_jvp = program(self._contact_geometry_jvp_impl, "contact_geometry_jvp")
         self._update_contact = program(
             lambda w, p, t, s: self.update(w, p, t, s, "contact"), "update_contact")
+        # the whole-mesh programs (built only when called: a large mesh never builds them)
+        self._local = program(self._local_impl, "local")
+        # friction: the case flags and the tangent in one program: one dispatch per Newton
+        # evaluation instead of two, which matters on small meshes, where a dispatch
+        # costs more than the work (docs/theory.md §10.2)
+        self._local_cases = program(self._local_cases_impl, "local_cases")
+        self._residual_whole = program(self.residual, "residual")
+        self._cases_whole = program(self.cases, "cases")
+        self._fields_whole = program(self.contact_fields, "fields", static_argnums=3)
+        self._update_whole = program(self.update, "update")
+        self._stiffness_whole = program(
+            lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1], "stiffness")
+        self._update_jvp_whole = program(jax.vmap(
+            lambda w, p, t, s, wd, e, sd: jax.jvp(lambda w_, p_, s_: self.update(w_, p_, t, s_),
+                                                  (w, p, s), (wd, e, sd))[1],
+            (None, None, None, None, 0, 0, 0)), "update_jvp")
         self.compiled = Compiled(
             residual=self._residual_eager, cases=self._cases_eager,
             status=program(self.contact_status, "status", static_argnums=4),
             fields=self._fields_eager,
             update=self._update_eager,
             switch_fields=program(self.switch_fields, "switch_fields"),
-            stiffness=self._element_stiffness_cells)
+            stiffness=self._element_stiffness_eager)
         self._reference = program(self._reference_impl, "reference")
         self.prescribed_at = program(self.prescribed_values, "prescribed")  # one program, not an op per Fixed
         self._update_contact_jvp = program(jax.vmap(
@@ -166,6 +186,13 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             (None, None, None, None, 0, 0, 0)), "update_contact_jvp")
         self._parameter_jvp = program(self._parameter_jvp_impl, "parameter_jvp")
         self._parameter_vjp = program(self._parameter_vjp_impl, "parameter_vjp")
+
+    #: meshes of at most this many cells are evaluated by programs of their own over
+    #: the whole mesh, larger ones by the programs of their element and contact kinds:
+    #: per cell, a kind's chunks cost 1.2x of a whole-mesh program at 1.8k cells and
+    #: 0.5-0.8x from 7k cells up, but on a small mesh each evaluation then takes more
+    #: dispatches and gathers than the work itself (docs/benchmarks.md)
+    WHOLE_MESH_UP_TO = 4096
 
     def program(self, fn, name: str, static_argnums=()) -> Program:
         """``jax.jit(fn)`` kept between processes under this model's key and ``name``
@@ -335,12 +362,21 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
 
-    def _local_impl(self, w, params, t, state_n=None, cases=None):
-        """Pure function: the residual without the internal forces and the
-        Jacobian blocks of every contact node, by a vmap over the nodes (what
-        :meth:`contact_tangents` computes through the contact kinds' programs)."""
+    def _local_impl(self, w, params, t, state_n=None, cases=None, Ke=None, elements=True):
+        """Residual and the Jacobian blocks of every element and contact node, by a
+        vmap over the whole mesh (``Ke``: the constant element stiffness of a linear
+        body, if known; it is then not returned again, the blocks start with the
+        contact blocks: as an output, Ke would be copied out of the compiled program
+        on every call, a copy as large as the whole element stiffness;
+        ``elements=False``: the contact and external forces only)."""
         R = -self.external_forces(self.reference(params), params, t)
         blocks = []
+        if elements and Ke is None:
+            re, Ke_new, _ = self._elements(w, params, state_n, tangent=True)
+            blocks = [Ke_new]
+            R = R.at[self.edofs.ravel()].add(re.ravel())
+        elif elements:
+            R = R + self.linear_forces(Ke, w)
         for i, s, x, lam, A, geo, cp, Xs in self._surface_inputs(w, params, t):
             h = self._node_history(i, state_n, cases)
             method = s.contact.method
@@ -358,6 +394,11 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             blocks.append(Kc)
         return R, blocks
 
+    def _local_cases_impl(self, w, params, t, state_n, Ke=None):
+        """:meth:`_local_impl` with the friction case flags computed first, once, and
+        passed to every node as data (docs/theory.md §3.4)."""
+        return self._local_impl(w, params, t, state_n, self.cases(w, params, t, state_n), Ke)
+
     @staticmethod
     def without_material(state):
         """The state with its Gauss-point history left out (what the contact and
@@ -366,6 +407,14 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
 
     def local_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
+        if not self.by_kind:
+            Ke = self.element_stiffness(params, device=True) if self.linear_elements else None
+            if self.has_contact_history:
+                R, blocks = self._local_cases(w, params, t, state_n, Ke)
+            else:
+                R, blocks = self._local(w, params, t, state_n, None, Ke)
+            head = [] if Ke is None else [self.element_stiffness(params)]
+            return np.asarray(R), head + [np.asarray(b) for b in blocks]
         # the cells' programs first: they run while the contact part is computed
         pending = None if self.linear_elements else self.element_tangents_start(w, params, state_n)
         R, blocks = self.contact_tangents(w, params, t, state_n)
@@ -377,7 +426,10 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         return R_el + R, [Ke] + blocks
 
     def _residual_eager(self, w, params, t, state_n=None):
-        """:meth:`residual` (NumPy), the internal forces from the element kind's programs."""
+        """:meth:`residual` (NumPy): a whole-mesh program, or the internal forces from
+        the element kind's programs."""
+        if not self.by_kind:
+            return np.asarray(self._residual_whole(w, params, t, state_n))
         R = self.contact_residual(w, params, t, state_n)
         if self.linear_elements:
             R_el = self.linear_forces_np(self.element_stiffness(params), w)

@@ -24,6 +24,7 @@ coordinate at the cost of the same single backward pass.
 from __future__ import annotations
 
 import logging
+from functools import partial
 import time
 
 import numpy as np
@@ -75,14 +76,15 @@ class Adjoint:
         self.model = m = model
         self._fn = jax.jit(jax.value_and_grad(fn, argnums=(0, 1, 3)))
 
-        # the contact and external forces and the contact history (per model); the
-        # element part comes from the element kind's programs (Model.element_vjp)
-        def res_vjp(w, p, t, s, cases, c):
-            return jax.vjp(lambda w_, p_, s_: m.residual(w_, p_, t, s_, cases, "rest"),
+        # on a mesh evaluated by the element kind's programs (Model.by_kind), these
+        # programs take the contact and external forces and the contact history only,
+        # the element part comes from the kind's programs (Model.element_vjp)
+        def res_vjp(w, p, t, s, cases, c, part="all"):
+            return jax.vjp(lambda w_, p_, s_: m.residual(w_, p_, t, s_, cases, part),
                            w, p, s)[1](c)
 
-        def upd_vjp(w, p, t, s, c):
-            return jax.vjp(lambda w_, p_, s_: m.update(w_, p_, t, s_, "contact"), w, p, s)[1](c)
+        def upd_vjp(w, p, t, s, c, part="all"):
+            return jax.vjp(lambda w_, p_, s_: m.update(w_, p_, t, s_, part), w, p, s)[1](c)
 
         def wp_vjp(p, t, c):
             return jax.vjp(lambda p_: m.prescribed_values(p_, t), p)[1](c)[0]
@@ -90,23 +92,30 @@ class Adjoint:
         def init_vjp(p, c):
             return jax.vjp(lambda p_: m.initial_state(jnp.zeros(m.n_dof), p_), p)[1](c)[0]
 
-        self._res_vjp_rest = m.program(res_vjp, "adjoint_residual_vjp")
-        self._upd_vjp_rest = m.program(upd_vjp, "adjoint_update_vjp")
+        self._res_vjp_whole = m.program(res_vjp, "adjoint_residual_vjp")
+        self._upd_vjp_whole = m.program(upd_vjp, "adjoint_update_vjp")
+        self._res_vjp_rest = m.program(partial(res_vjp, part="rest"), "adjoint_residual_vjp_rest")
+        self._upd_vjp_rest = m.program(partial(upd_vjp, part="contact"), "adjoint_update_vjp_contact")
         self._wp_vjp = m.program(wp_vjp, "adjoint_prescribed_vjp")
         self._init_vjp = m.program(init_vjp, "adjoint_initial_vjp")
         self._cases = m.compiled.cases
 
     def _res_vjp(self, w, pe, t, s, cases, c):
-        """(dR/d(w, phi, s))^T c: the rest's program plus the elements' programs."""
+        """(dR/d(w, phi, s))^T c: a whole-mesh program, or the rest's program plus
+        the elements' programs."""
         m = self.model
+        if not m.by_kind:
+            return self._res_vjp_whole(w, pe, t, s, cases, c)
         rw, rp, rs = self._res_vjp_rest(w, pe, t, m.without_material(s), cases, c)
         ew, ep, eh = m.element_vjp("update", (0,), w, pe, s, (np.asarray(c)[m.edofs],))
         return np.asarray(rw) + ew, _add(rp, ep), self._with_material(rs, eh)
 
     def _upd_vjp(self, w, pe, t, s, c):
         """(dU/d(w, phi, s))^T c: the contact history's program plus, with a
-        material history, the elements' programs."""
+        material history, the elements' programs (or a whole-mesh program)."""
         m = self.model
+        if not m.by_kind:
+            return self._upd_vjp_whole(w, pe, t, s, c)
         uw, up, us = self._upd_vjp_rest(w, pe, t, m.without_material(s), (c[0], c[1], None))
         if not m.n_state:
             return uw, up, us

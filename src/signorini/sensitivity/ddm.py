@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jax import jax
+from .._jax import jax, jnp, to_device
 from ..errors import NonDifferentiableError
 from ..params import unit_tangents
 
@@ -59,6 +59,31 @@ class DDM:
             return jax.jvp(lambda p: model.prescribed_values(p, t), (params,), (e,))[1]
 
         self._wp_dot = model.program(jax.vmap(wp_dot, (None, None, 0)), "ddm_wp_dot")
+
+        # meshes evaluated by whole-mesh programs (Model.by_kind false): the pseudo-load
+        # is a JVP of the residual (all of it, or its internal or other forces only)
+        def pseudo(w, params, t, state_n, cases, w_dot, e, state_dot_n, part):
+            f = lambda w_, p_, s_: model.residual(w_, p_, t, s_, cases, part)
+            return jax.jvp(f, (w, params, state_n), (w_dot, e, state_dot_n))[1]
+
+        axes = (None, None, None, None, None, 0, 0, 0)
+        self._pseudo = {part: model.program(jax.vmap(lambda *a, part=part: pseudo(*a, part), axes),
+                                            f"ddm_pseudo_{part}")
+                        for part in ("all", "elements", "rest")}
+
+        def material_pseudo(w, params, t, e_el):
+            # tangents on the element parameters only, the displacements held: the
+            # other parameters' tangents are symbolic zeros, so the geometry (without
+            # shape parameters) is not differentiated, as it would be with a one-hot
+            # tangent on every parameter
+            f = lambda sub: model.residual(w, {**params, **sub}, t, None, None, "elements")
+            return jax.jvp(f, ({k: params[k] for k in e_el},), (e_el,))[1]
+
+        self._material_pseudo = model.program(jax.vmap(material_pseudo, (None, None, None, 0)),
+                                              "ddm_material_pseudo")
+        self._dke_whole = model.program(jax.vmap(lambda p, e: jax.jvp(
+            lambda p_: model._elements(jnp.zeros(model.n_dof), p_, None, True)[1], (p,), (e,))[1],
+            (None, 0)), "ddm_dke")
         # Names whose pseudo-load has no internal-force part can skip the element
         # kernels (the costly half of a pseudo-load): those that enter neither the
         # material nor the shape, nor a prescribed displacement, nor (plasticity)
@@ -157,14 +182,17 @@ class DDM:
         """(n_names, n_dof) pseudo-loads; element kernels only for the names that
         need them."""
         m = self.model
-        # the contact and external forces' part: the contact kinds' programs
-        P = m.contact_pseudo_load(w, params, t, state_n, w_dot, e, state_dot_n, cases)
         moves = np.any(w_dot[:, m.prescribed] != 0.0, axis=1) if m.prescribed.size else \
             np.zeros(len(self.names), bool)
         if self._element_names is None:
             el = np.ones(len(self.names), bool)
         else:
             el = np.array([n in self._element_names for n in self.names]) | moves
+        if not m.by_kind:
+            return self._pseudo_loads_whole(w, params, t, state_n, cases, w_dot, e, state_dot_n,
+                                            reuse_stiffness, el, moves)
+        # the contact and external forces' part: the contact kinds' programs
+        P = m.contact_pseudo_load(w, params, t, state_n, w_dot, e, state_dot_n, cases)
         k = np.nonzero(el)[0]
         if not k.size:
             return P
@@ -179,6 +207,40 @@ class DDM:
         if k.size:
             sub = jax.tree_util.tree_map(lambda a: np.asarray(a)[k], (w_dot, e, state_dot_n))
             P[k] += m.scatter(m.element_jvp("update", (0,), w, params, state_n, *sub)[0])
+        return P
+
+    def _pseudo_loads_whole(self, w, params, t, state_n, cases, w_dot, e, state_dot_n,
+                            reuse_stiffness, el, moves) -> np.ndarray:
+        """:meth:`_pseudo_loads` by the model's whole-mesh programs (``el``: the names
+        whose pseudo-load has an internal-force part, ``moves``: those that move a
+        prescribed displacement)."""
+        m = self.model
+        wd = to_device(w_dot)
+        args = (w, params, t, state_n, cases)
+        if self._element_names is None or (
+                el.all() and (self._proportional not in self.names or moves.any())):
+            return np.asarray(self._pseudo["all"](*args, wd, e, state_dot_n))
+        P = np.array(self._pseudo["rest"](*args, wd, e, state_dot_n))
+        k = np.nonzero(el)[0]
+        if not k.size:
+            return P
+        if reuse_stiffness and m.linear_elements and self._linear_pseudo(P, k, w, params, w_dot):
+            return P
+        if moves[k].any():
+            sub = jax.tree_util.tree_map(lambda a: a[k], (wd, e, state_dot_n))
+            P[k] += np.asarray(self._pseudo["elements"](*args, *sub))
+            return P
+        # no prescribed motion: the internal forces see the parameters only
+        prop = [j for j in k if self.names[j] == self._proportional]
+        if prop:  # K_e proportional to it: dK_e/dE u_e = K_e u_e / E
+            P[prop[0]] += self._internal_forces(w, params) / float(params[self._proportional])
+        k = np.array([j for j in k if self.names[j] != self._proportional], dtype=int)
+        if k.size:
+            # only the design names: a tangent of zeros on another element parameter
+            # (a shape parameter not designed) would still differentiate the geometry
+            e_el = {n: to_device(np.asarray(e[n])[k]) for n in self.names
+                    if n in self._element_names and n != self._proportional}
+            P[k] += np.asarray(self._material_pseudo(w, params, t, e_el))
         return P
 
     def _internal_forces(self, w, params) -> np.ndarray:
@@ -200,8 +262,12 @@ class DDM:
         names = tuple(self.names[j] for j in mat)
         if mat and (self._dke is None or self._dke[:2] != (key, names)):
             e = unit_tangents(params, list(names))
-            self._dke = (key, names, m.element_jvp("tangent", (1,), np.zeros(m.n_dof), params,
-                                                    None, None, e, None)[0])
+            if m.by_kind:
+                dke = m.element_jvp("tangent", (1,), np.zeros(m.n_dof), params, None, None, e,
+                                    None)[0]
+            else:
+                dke = np.asarray(self._dke_whole(params, e))
+            self._dke = (key, names, dke)
         Ke = m.element_stiffness(params)
         ue = np.asarray(w)[m.edofs]
         flat = m.edofs.ravel()
