@@ -48,6 +48,24 @@ class ConvergenceError(SolverError):
         self.partial = partial
 
 
+class Interrupted(KeyboardInterrupt):
+    """The run was stopped by a signal: SIGINT (Ctrl-C, Python's own
+    ``KeyboardInterrupt``) or SIGTERM (what a batch scheduler sends at its time
+    limit; the ``signorini`` command turns it into this exception). The command
+    keeps what converged and exits with 128 + the signal's number.
+
+    Attributes:
+        signum: the signal's number (2 for SIGINT, 15 for SIGTERM).
+        partial: the load path's :class:`~signorini.algorithms.solution.Solution`
+            with the increments converged before the signal, when it came during a
+            solve (set by the solve).
+    """
+
+    def __init__(self, signum: int = 2):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+
 class NonDifferentiableError(InputError):
     """A design sensitivity is not finite: some expression of the problem is not
     differentiable at the parameter values (JAX's tangent through it is NaN)."""

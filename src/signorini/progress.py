@@ -70,10 +70,13 @@ class SolveProgress:
         self.n_inc += 1
         res = steplog.residuals[-1] if steplog.residuals else float("nan")
         # with a bar the line would only repeat it: DEBUG (shown by --verbose, which has no bars)
+        floor = getattr(steplog, "stop", "") == "round-off floor"
         log.log(logging.DEBUG if self._bar is not None else logging.INFO,
-                "[%s] increment %d (t = %.4g of 1, nominal %d): %d Newton it, |R| %s", self.label,
+                "[%s] increment %d (t = %.4g of 1, nominal %d): %d Newton it, |R| %s%s", self.label,
                 self.n_inc, t, self.steps, steplog.iterations,
-                " ".join(f"{r:.1e}" for r in steplog.residuals))
+                " ".join(f"{r:.1e}" for r in steplog.residuals),
+                f", at the round-off floor ({steplog.relative_residual:.1e} of the reference)"
+                if floor else "")
         if self._bar is not None:
             self._bar.n = int(round(1000 * t))
             self._bar.unit = (f"t = {t:.3f}, increment {self.n_inc} (nominal {self.steps}), "

@@ -92,6 +92,7 @@ class Timings:
         self.imports_from = imports_from
         self._phases: list[tuple[str, float, float]] = []
         self._open: tuple[str, float] | None = None  # the phase of mark(): (name, since)
+        self._inner: list[str] = []  # the phase() blocks open now, innermost last
 
     def mark(self, name: str | None) -> None:
         """From now on the run is in phase ``name`` (None: none), until the next
@@ -106,10 +107,18 @@ class Timings:
         """Book the time of the ``with`` block under ``name`` (nested phases:
         the inner one is booked, the outer one gets the rest)."""
         a = time.time()
+        self._inner.append(name)
         try:
             yield
         finally:
+            self._inner.pop()
             self._phases.append((name, a, time.time()))
+
+    def now(self) -> str | None:
+        """The phase the run is in now (the innermost open one), or None."""
+        if self._inner:
+            return self._inner[-1]
+        return None if self._open is None else self._open[0]
 
     def split(self, end: float | None = None) -> dict:
         """The parts in seconds: ``total_s`` (from the process start if

@@ -91,3 +91,47 @@ def test_old_command_name_runs_the_renamed_command_with_a_notice(capsys):
     with pytest.raises(SystemExit):
         main(["optimize-forging", "--help"])
     assert "is now" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("bad", ["0", "-1e-10", "nan", "1", "2", "abc"])
+def test_rtol_is_validated(tmp_path, capsys, bad):
+    """--rtol takes a relative tolerance in (0, 1): anything else is a usage error
+    (exit 2) that says what is expected, before any work."""
+    with pytest.raises(SystemExit) as e:
+        main(["hertz", "--out", str(tmp_path / "x"), "-q", "--no-fd", f"--rtol={bad}"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "--rtol" in err and ("between 0 and 1" in err or "expected a number" in err), err
+    assert not (tmp_path / "x").exists()
+
+
+def test_rtol_and_max_iter_reach_newton(tmp_path):
+    """--rtol and --max-iter are Newton's: a loose tolerance stops earlier (and the
+    summary has each increment's relative residual and why Newton stopped); a
+    problem file's [solve] values give way to them. (Between 1e-4 and 1e-11 the
+    one-step Hertz takes the same iterations: the residual falls from above 1e-4
+    to round-off in the iteration that finds the final contact zone.)"""
+    from pathlib import Path
+
+    runs = {}
+    for rtol in ("1e-11", "0.5"):
+        out = tmp_path / rtol
+        assert main(["hertz", "--out", str(out), "-q", "--no-fd", "--no-coarse-start",
+                     "--rtol", rtol]) == 0
+        runs[rtol] = s = json.loads((out / "summary.json").read_text())
+        assert s["newton_stops"] == ["rtol"]
+        assert s["newton_relative_residuals"][0] <= float(rtol)
+    assert runs["0.5"]["newton_iterations"][0] < runs["1e-11"]["newton_iterations"][0]
+    # one Newton iteration is not enough: the increment is cut until the budget is spent
+    out = tmp_path / "few"
+    assert main(["hertz", "--out", str(out), "-q", "--no-fd", "--no-coarse-start",
+                 "--max-iter", "1"]) == 1
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and "no convergence in 1 iterations" in s["reason"]
+    example = Path(__file__).resolve().parents[2] / "examples" / "block.toml"
+    out = tmp_path / "file"
+    assert main(["run", str(example), "--out", str(out), "-q", "--rtol", "1e-5",
+                 "--max-iter", "7"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["options"]["rtol"] == 1e-5 and s["options"]["max_iter"] == 7
+    assert all(e["relative_residual"] <= 1e-5 for e in s["newton_log"] if e["converged"])

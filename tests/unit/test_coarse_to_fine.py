@@ -1,8 +1,7 @@
 """Coarse meshes guiding a load path (signorini.algorithms.coarse_to_fine): the
 prolongation (exact for affine fields, built once per pair of meshes), a
 coarse-to-fine start and guided increments give the solution from rest with
-fewer Newton iterations, and failing coarse levels guide as far as they
-converged."""
+fewer Newton iterations, and a failing coarse level is abandoned at once."""
 
 import sys
 
@@ -102,26 +101,35 @@ def test_guide_covers_only_its_own_increments():
         sg.solve(pb, start=sg.Start(guide=plain.increments[0].w))
 
 
-def test_a_failing_coarse_level_guides_as_far_as_it_converged(monkeypatch):
-    """A coarse level whose Newton fails is recorded as failed; the increments it
-    converged still guide the next mesh, the rest use the predictor, and the
-    fine path is the one from rest."""
+def test_a_failing_coarse_level_is_abandoned_at_once(monkeypatch):
+    """A coarse level is solved without step cutting and abandoned at its first
+    failure, with the coarser levels after it (not solved): the fine mesh starts
+    without its guide, with a warning, and its path is the one from rest."""
     solve_module = sys.modules["signorini.algorithms.coarse_to_fine"]  # the solve it calls
     real = solve_module.solve
-    coarse, fine = hertz_friction_problem(refine=0, n_fine=12), hertz_friction_problem(refine=0)
+    pbs = [hertz_friction_problem(refine=0, n_fine=8), hertz_friction_problem(refine=0, n_fine=12),
+           hertz_friction_problem(refine=0)]
+    calls = []
 
     def failing(pb, **kw):
-        if pb is coarse:  # converges to t = 0.5, then fails
+        calls.append((next(k for k, q in enumerate(pbs) if q is pb), kw["options"].max_cuts,
+                      kw.get("start")))
+        if pb is pbs[0]:  # converges to t = 0.5, then fails
             part = real(pb, **{**kw, "until": 0.5})
             raise sg.ConvergenceError("no convergence at t=0.667 (test)", partial=part)
         return real(pb, **kw)
 
     monkeypatch.setattr(solve_module, "solve", failing)
     o = sg.NewtonOptions(rtol=1e-10)
-    sol, levels = solve_coarse_to_fine([coarse, fine], steps=6, options=o, wrt=["mu"])
-    assert "test" in levels[0]["failed"] and len(levels[0]["newton_iterations"]) == 3
+    sol, levels = solve_coarse_to_fine(pbs, steps=6, options=o, wrt=["mu"])
+    # the coarse level without step cuts; the middle one skipped; the finest unguided,
+    # with the run's own cutting budget
+    assert calls == [(0, 0, None), (2, o.max_cuts, None)]
+    assert len(levels) == 2 and "test" in levels[0]["failed"]
+    assert len(levels[0]["newton_iterations"]) == 3
     assert "failed" not in levels[1] and len(sol.increments) == 6
-    plain = real(fine, steps=6, options=o, wrt=["mu"])
+    assert any("level 0" in w and "abandoned" in w for w in sol.warnings), sol.warnings
+    plain = real(pbs[2], steps=6, options=o, wrt=["mu"])
     for a, b in zip(sol.increments, plain.increments):
         assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["mu"], b.sens["mu"]) < 1e-8
 
@@ -146,6 +154,7 @@ def test_a_coarse_level_that_converges_nothing_keeps_the_guide_before(monkeypatc
     assert "failed" in levels[1] and levels[1]["newton_iterations"] == []
     assert guides[0] is None and guides[1] is not None and guides[2] is guides[1]
     assert len(sol.increments) == 4
+    assert any("level 1" in w and "abandoned" in w for w in sol.warnings), sol.warnings
 
 
 def test_prolongation_reproduces_affine_fields():

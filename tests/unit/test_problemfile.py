@@ -381,6 +381,8 @@ BAD = [
      "[[load]] #1 resultant: expected true or false"),
     (_sub("steps = 1", "steps = 0"), sg.InputError, "[solve] steps: must be >= 1"),
     (_sub("steps = 1", "steps = 1\nrtol = -1e-8"), sg.InputError, "[solve] rtol: must be a non-negative"),
+    (_sub("steps = 1", "steps = 1\nrtol = 2.0"), sg.InputError, "[solve] rtol: must be below 1"),
+    (_sub("steps = 1", "steps = 1\nrtol = nan"), sg.InputError, "[solve] rtol: must be a non-negative"),
     (_sub('type = "max_pressure"', 'type = "max_pressure"\nset = "top"'), sg.InputError,
      "[[response]] #1 unknown key 'set'"),
     (_sub('type = "displacement"', 'type = "reaction"'), sg.InputError,

@@ -72,3 +72,31 @@ def test_sweep_command_sequential(tmp_path, capsys):
     assert len({r["mesh.dofs"] for r in table}) == 1
     assert "2 points, 0 failed" in capsys.readouterr().out
     assert main(["sweep", "hertz", "--out", str(out), "--set", "R", "--sequential"]) == 2
+
+
+def test_a_sweep_run_again_continues_from_what_was_recorded(tmp_path):
+    """Run again, a sweep takes the points an earlier run completed (same
+    arguments) from their directories and runs only the others: here the point
+    that failed and a point whose directory lost its summary (as after an
+    interrupted run); --fresh (fresh=True) runs every point again, to the same
+    results."""
+    pts = grid(["R=1.0,1.1,1.2"]) + [{"R": 1.0, "nu": 0.7}]  # the last point is bad input
+    out = tmp_path / "sw"
+    first = json.loads(_sweep_json(run_sweep("hertz", pts, out, extra_args=HERTZ_FAST,
+                                             sequential=True)))
+    (out / "point_2" / "summary.json").unlink()
+    again = json.loads(_sweep_json(run_sweep("hertz", pts, out, extra_args=HERTZ_FAST,
+                                             sequential=True)))
+    assert [p["kept"] for p in again["points"]] == [True, True, False, False]
+    assert [p["exit_code"] for p in again["points"]] == [0, 0, 0, 2]
+    for p, q in zip(first["points"][:3], again["points"][:3]):
+        assert p["summary"]["p0"] == q["summary"]["p0"]
+    fresh = json.loads(_sweep_json(run_sweep("hertz", pts, out, extra_args=HERTZ_FAST,
+                                             sequential=True, fresh=True)))
+    assert not any(p["kept"] for p in fresh["points"])
+    assert [p["summary"]["p0"] for p in fresh["points"][:3]] == \
+        [p["summary"]["p0"] for p in again["points"][:3]]
+
+
+def _sweep_json(csv_path):
+    return (csv_path.parent / "sweep.json").read_text()

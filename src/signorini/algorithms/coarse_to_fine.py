@@ -24,6 +24,7 @@ are unaffected.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 from collections.abc import Sequence
 
@@ -37,6 +38,7 @@ from .prolongation import Prolongation
 from .solution import Solution
 from .stepping import model_for, solve
 from ..errors import ConvergenceError
+from .newton import NewtonOptions
 
 log = logging.getLogger("signorini")
 
@@ -68,10 +70,13 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
     treats the last problem as a coarse level too (a guide for yet another mesh:
     no sensitivities, no switch report, its warnings kept in its solution).
 
-    A coarse level that fails guides the next one over the increments it
-    converged, or leaves the guide of the level before when that one reaches
-    further (recorded as ``failed`` in its level); the finest level's failure
-    is raised.
+    A coarse level is only a start, so it may not cost the run: its increments
+    are never cut (``max_cuts=0``), and the first that fails abandons it at once,
+    with the coarser levels after it: the next mesh solved (the finest) is
+    guided by the last level that converged along the whole path, or starts
+    without a guide (recorded as ``failed`` in the level, and as a warning in
+    the finest solution when ``whole_path``; :func:`failed_levels` gives the
+    warning's text). The finest level's failure is raised.
 
     Returns:
         (solution of the finest problem, per level: dofs, Newton iterations per
@@ -81,31 +86,49 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
     if not problems:
         raise InputError("solve_coarse_to_fine needs at least one problem")
     levels, sol, label = [], None, solve_kwargs.pop("label", None)
+    options = solve_kwargs.pop("options", None) or NewtonOptions()
+    abandoned = False
     for k, pb in enumerate(problems):
         last = k == len(problems) - 1 and whole_path
+        if abandoned and not last:
+            continue
         t0 = time.perf_counter()
-        # coarse levels: no switch-point report (only a result needs it), no warnings issued
-        kw = dict(solve_kwargs) if last else {**solve_kwargs, "switch_tol": None}
+        # coarse levels: no switch-point report (only a result needs it), no warnings
+        # issued, no step cutting
+        kw = dict(solve_kwargs, options=options) if last else {
+            **solve_kwargs, "switch_tol": None, "options": dataclasses.replace(options, max_cuts=0)}
         level: dict = {}
         done: list = []
         try:
             with contextlib.nullcontext() if last else checks.silenced():
-                sol = solve(pb, steps=steps, wrt=wrt if last else (),
+                new = solve(pb, steps=steps, wrt=wrt if last else (),
                             start=sol, label=label if last else f"level {k}", **kw)
-            done = list(sol.newton_iterations)
+            sol, done = new, list(new.newton_iterations)
         except ConvergenceError as e:
             if last:
                 raise
-            # what converged still guides the next mesh, unless the level before
-            # guides further (then it keeps guiding); the rest uses the predictor
-            part = e.partial if e.partial is not None and e.partial.increments else None
+            part = e.partial
             done = list(part.newton_iterations) if part is not None else []
-            if part is not None and (sol is None or len(part.increments) >= len(sol.increments)):
-                sol = part
             level["failed"] = str(e)
-            log.info("coarse level %d failed (%s); the next mesh is guided over %d increments",
-                     k, e, 0 if sol is None else len(sol.increments))
+            abandoned = True
+            log.info("coarse level %d failed (%s); abandoned: the next mesh is %s", k, e,
+                     "unguided" if sol is None else "guided by the level before")
         levels.append({"dofs": int(model_for(pb).n_dof), "newton_iterations": done,
                        "time_s": time.perf_counter() - t0, **level})
         log.debug("coarse-to-fine level %d: %d DOFs, %s iterations", k, levels[-1]["dofs"], done)
+    if whole_path:
+        for message in failed_levels(levels):
+            checks.warn(sol, message)
     return sol, levels
+
+
+def failed_levels(levels: list[dict]) -> list[str]:
+    """The warnings of the coarse levels that failed (:func:`solve_coarse_to_fine`)."""
+    out = []
+    for k, lv in enumerate(levels):
+        if "failed" in lv:
+            out.append(f"the coarse start's level {k} ({lv.get('dofs', '?')} DOFs) failed and was "
+                       f"abandoned ({lv['failed']}); the mesh after it started "
+                       "without its guide (the result is the same, Newton may need more "
+                       "iterations)")
+    return out

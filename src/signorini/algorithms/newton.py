@@ -25,7 +25,9 @@ class NewtonOptions:
 
     Attributes:
         rtol: converged when ||R|| <= rtol * ref, ref = max(||R_0||, ||f_ext||)
-            (multiplier rows weighted to force units).
+            (multiplier rows weighted to force units). An iterate whose residual
+            has stopped falling at the round-off floor of the problem is
+            accepted too when that floor lies above rtol (see ``step_tol``).
         atol: absolute floor of the same test.
         max_iter: iterations per increment before the increment is cut.
         max_cuts: how many times one increment may be halved.
@@ -38,6 +40,15 @@ class NewtonOptions:
         line_search: halve a Newton correction until the residual norm falls
             (helps when stick/slip or contact states cycle; off by default:
             Newton's own path is then exactly the textbook one).
+        step_tol: the round-off floor: an iterate is also converged when its
+            residual is at most ``floor_max * ref``, did not fall below half the
+            residual before it (Newton's quadratic phase is over) and the
+            correction that led to it changed the displacements by at most
+            ``step_tol`` relative (||du|| <= step_tol ||u||, free DOFs): the
+            arithmetic resolves the solution no better. The step's log says so
+            (``stop = "round-off floor"``) with the relative residual reached.
+        floor_max: the largest relative residual accepted at a floor; above it a
+            residual that stops falling is a failure.
         predictor: first iterate of an increment after the first:
             ``"extrapolate"`` (default) continues the last two converged
             increments linearly (free DOFs, multipliers included), ``"none"``
@@ -54,11 +65,16 @@ class NewtonOptions:
     divergence: float = 1e12
     singular_check: float = 1e-6
     line_search: bool = False
+    step_tol: float = 1e-9
+    floor_max: float = 1e-7
     predictor: str = "extrapolate"
 
     def __post_init__(self):
         if not (self.rtol > 0 or self.atol > 0):
             raise InputError("NewtonOptions: rtol or atol must be positive")
+        if not self.rtol < 1:
+            raise InputError(f"NewtonOptions: rtol must be below 1 (a fraction of the reference "
+                             f"residual; default 1e-10), got {self.rtol!r}")
         for name in ("max_iter", "max_cuts", "max_total_cuts"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool):
@@ -66,13 +82,17 @@ class NewtonOptions:
         if self.max_iter < 1 or self.max_cuts < 0 or self.max_total_cuts < 0:
             raise InputError("NewtonOptions: max_iter >= 1, max_cuts >= 0 and max_total_cuts >= 0 "
                              "are required")
-        for name in ("rtol", "atol", "min_step", "divergence", "singular_check"):
+        for name in ("rtol", "atol", "min_step", "divergence", "singular_check", "step_tol",
+                     "floor_max"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v == v and abs(v) != float("inf")):
                 raise InputError(f"NewtonOptions: {name} must be a finite number, got {v!r}")
         if self.predictor not in ("extrapolate", "none"):
             raise InputError(f"NewtonOptions: predictor must be 'extrapolate' or 'none', got "
                              f"{self.predictor!r}")
+        if not (0 <= self.step_tol < 1 and 0 <= self.floor_max < 1):
+            raise InputError(f"NewtonOptions: step_tol and floor_max must lie in [0, 1), got "
+                             f"{self.step_tol!r} and {self.floor_max!r}")
         if not 0 < self.min_step < 1:
             raise InputError(f"NewtonOptions: min_step must lie in (0, 1), got {self.min_step}")
 
@@ -86,6 +106,10 @@ class StepLog:
     residuals: list[float] = field(default_factory=list)
     converged: bool = False
     reason: str = ""
+    #: why Newton stopped: "rtol", "atol" or "round-off floor" (converged), else ""
+    stop: str = ""
+    #: ||R|| / ref of the last iterate
+    relative_residual: float = float("nan")
     time_assembly: float = 0.0
     time_factorization: float = 0.0
     time_solve: float = 0.0
@@ -98,6 +122,8 @@ class StepLog:
     def summary(self) -> str:
         res = " ".join(f"{r:.1e}" for r in self.residuals)
         state = "converged" if self.converged else f"FAILED ({self.reason})"
+        if self.stop == "round-off floor":
+            state += f" at the round-off floor ({self.relative_residual:.1e} of the reference)"
         return f"t={self.t:.6g} dt={self.dt:.3g}: {state} in {self.iterations} it, |R|: {res}"
 
 
@@ -129,6 +155,34 @@ def _stagnated(res: list[float], ref: float) -> bool:
     return min(last[1:]) > 0.5 * last[0]
 
 
+def _relative(dw, w, disp) -> float | None:
+    """||dw|| / ||w|| over the displacements (``disp``: their mask among the free
+    DOFs; the multipliers, in other units, are held by the residual test): inf
+    for zero displacements with a nonzero correction, None without a correction."""
+    if dw is None:
+        return None
+    n, d = float(np.linalg.norm(dw[disp])), float(np.linalg.norm(w[disp]))
+    return n / d if d > 0 else (0.0 if n == 0 else float("inf"))
+
+
+def _converged(norm: float, norm_prev: float, ref: float, step, options) -> str:
+    """Why the iterate is converged ("rtol", "atol", "round-off floor"), or "".
+
+    The floor: the residual is small (<= floor_max ref), stopped falling (not
+    below half the one before: the quadratic phase, where each residual is a
+    small fraction of the last, is never cut short) and the last correction
+    moved the displacements by no more than step_tol relative (``step``; None
+    before the first correction)."""
+    if norm <= options.rtol * ref:
+        return "rtol"
+    if norm <= options.atol:
+        return "atol"
+    if (step is not None and norm <= options.floor_max * ref and norm > 0.5 * norm_prev
+            and step <= options.step_tol):
+        return "round-off floor"
+    return ""
+
+
 def _reject(Rf, weights, norm_prev, alpha, options) -> bool:
     """Backtrack from this iterate? Always if its residual is not finite; with a
     line search also if the norm did not fall (Armijo, c = 1e-4)."""
@@ -153,6 +207,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         StepFailure: no convergence, divergence, non-finite residual or singular tangent.
     """
     free = model.free
+    disp = free < 2 * model.n_nodes  # the displacements among the free DOFs
     ref = None
     dw = None
     norm_prev = np.inf
@@ -167,22 +222,35 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
             raise StepFailure(
                 "non-finite residual: an element is inverted (J <= 0) or a contact node reached "
                 "the centre of the obstacle; a smaller load increment may help")
-        norm = norm_prev = float(np.linalg.norm(Rf * weights[free]))
+        norm = float(np.linalg.norm(Rf * weights[free]))
         if ref is None:
             ref = max(norm, ref_floor)
         steplog.residuals.append(norm)
+        steplog.relative_residual = norm / ref if ref > 0 else 0.0
         log.debug("  t=%.6g it %d |R|=%.3e", t, k, norm)
-        if norm <= max(options.rtol * ref, options.atol):
-            steplog.converged = True
+        step = _relative(dw, w[free], disp)
+        stop = _converged(norm, norm_prev, ref, step, options)
+        if stop:
+            steplog.converged, steplog.stop = True, stop
+            if stop == "round-off floor":
+                log.debug("  t=%.6g: converged at the round-off floor, |R| = %.1e of the reference "
+                          "(rtol %g), last correction %.1e of the displacements", t,
+                          steplog.relative_residual, options.rtol, step)
             return w, R, blocks, fac
+        norm_prev = norm
         if _stagnated(steplog.residuals, ref):
             floor = norm / ref
             raise StepFailure(
                 f"Newton stagnated at |R| = {norm:.2e} ({floor:.1e} of the reference norm) for "
-                f"{STAGNATION} iterations: that is the round-off floor of this problem, so rtol = "
-                f"{options.rtol:g} cannot be reached; use rtol >= {10 * floor:.0e}", stagnated=True)
+                f"{STAGNATION} iterations while its corrections still changed the displacements by "
+                f"{step:.1e} (more than step_tol = {options.step_tol:g}): the "
+                "tangent is inaccurate or the problem is ill-conditioned; check the contact "
+                "penalties eps (too large ones make the tangent ill-conditioned) and the mesh",
+                stagnated=True)
         if k == options.max_iter:
-            raise StepFailure(f"no convergence in {options.max_iter} iterations")
+            raise StepFailure(f"no convergence in {options.max_iter} iterations (last |R| = "
+                              f"{steplog.relative_residual:.1e} of the reference, rtol "
+                              f"{options.rtol:g}; raise max_iter or use smaller load steps)")
         if norm > options.divergence * ref:
             raise StepFailure("residual diverging")
         fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=(k == 0))

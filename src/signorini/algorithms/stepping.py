@@ -14,6 +14,7 @@ import dataclasses
 import logging
 import threading
 import time
+import weakref
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 
@@ -40,6 +41,14 @@ from .solution import Increment, Solution
 log = logging.getLogger("signorini")
 
 _MODELS: OrderedDict = OrderedDict()
+#: per label, the solution of the last solve started with it (weakly held): what
+#: an interrupted command keeps when the signal came just after its solve returned
+_STARTED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+
+
+def last_started(label: str):
+    """The solution of the last solve started with ``label`` (None if gone)."""
+    return _STARTED.get(label)
 
 
 def model_for(problem: Problem) -> Model:
@@ -271,6 +280,8 @@ class _LoadPath:
         self.ddm = ddm_for(model, names)
         self.weights = model.convergence_weights(params)
         self.sol = sol = Solution(model, dict(problem.params), names)
+        if label is not None:
+            _STARTED[label] = sol
         sol.label = label
         sol.solver = self.lin.solver.name
         sol.linear_solver = self.lin.solver  # the object (kept analyses, user solvers) for an adjoint
@@ -295,6 +306,17 @@ class _LoadPath:
         return ConvergenceError(message, partial=self.sol)
 
     def run(self, until: float) -> Solution:
+        try:
+            return self._run(until)
+        except KeyboardInterrupt as e:  # SIGINT, or SIGTERM in the command (errors.Interrupted)
+            # the innermost solve's converged increments ride on the interrupt
+            if getattr(e, "partial", None) is None:
+                e.partial = self.sol
+                self.sol.status, self.sol.reason = "interrupted", "interrupted"
+                self.progress.close("interrupted")
+            raise
+
+    def _run(self, until: float) -> Solution:
         sol = self.sol
         while self.t < until - 1e-12:
             self.dt = min(self.dt, until - self.t)

@@ -3,20 +3,25 @@
 Each command lives in its own module of :mod:`signorini.app.commands`, listed
 in :mod:`signorini.app.registry`. Exit codes: 0 success, 1 the solve failed
 (converged increments and ``summary.json`` with ``"status": "failed"`` are
-written), 2 bad input.
+written), 2 bad input, 130 / 143 interrupted by SIGINT (Ctrl-C) / SIGTERM (the
+converged increments and ``summary.json`` with ``"status": "interrupted"`` are
+written).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import os
+import signal
 import sys
+import threading
 import warnings
 
 from .. import progress, timing
 from .._version import __version__
-from ..errors import ConvergenceError, SignoriniError, SignoriniWarning
+from ..errors import ConvergenceError, Interrupted, SignoriniError, SignoriniWarning
 from . import registry
 from .options import UNITS, Formatter
 
@@ -31,7 +36,9 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
                     "Lagrangian with direct-differentiation (DDM) sensitivities. " + UNITS,
         epilog="Run 'signorini COMMAND --help' for the options of a command. Exit codes: 0 "
                "success, 1 the solve failed (converged increments and summary.json with status "
-               "'failed' are written), 2 bad input.")
+               "'failed' are written), 2 bad input, 130 / 143 interrupted by Ctrl-C (SIGINT) / "
+               "SIGTERM (the converged increments and summary.json with status 'interrupted' "
+               "are written).")
     parser.add_argument("--version", action="version", version=f"signorini {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in registry.COMMANDS if only is None else (only,):
@@ -87,6 +94,34 @@ def entry() -> None:
     os._exit(code if isinstance(code, int) else 1)
 
 
+@contextlib.contextmanager
+def _signals(final: int | None = None):
+    """SIGTERM raises :class:`~signorini.errors.Interrupted` as SIGINT raises
+    ``KeyboardInterrupt`` (so a batch scheduler's stop keeps the run's work too);
+    with ``final``, while the report of an interrupt is written, either signal
+    ends the process at once with that exit status. Only in the main thread
+    (signal handlers cannot be set elsewhere: a sweep's points in Dask threads
+    run without)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        raise Interrupted(signum)
+
+    def now(signum, frame):
+        os._exit(final)
+
+    handler = stop if final is None else now
+    before = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)
+              if final is not None or s == signal.SIGTERM}
+    try:
+        yield
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+
+
 def _main(argv) -> int:
     argv = list(argv)
     if argv:
@@ -106,8 +141,16 @@ def _main(argv) -> int:
     logger = logging.getLogger("signorini")
     logger.addFilter(flt)
     try:
-        with progress.bars(show):
+        with progress.bars(show), _signals():
             return registry.command(args.command).execute(args)
+    except KeyboardInterrupt as e:  # SIGINT, or SIGTERM (_signals): keep what converged
+        signum = getattr(e, "signum", signal.SIGINT)
+        with _signals(final=128 + signum):
+            from . import runner  # noqa: PLC0415  (loaded by every command that ran)
+
+            print(file=sys.stderr)  # past a progress bar's line
+            print(f"signorini: {runner.report_interrupt(signum)}", file=sys.stderr)
+        return 128 + signum
     except ConvergenceError as e:
         print(f"signorini: the solve failed: {e}", file=sys.stderr)
         print(f"converged increments and summary.json (status 'failed') are in {args.out}/",

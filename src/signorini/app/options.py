@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..algorithms.newton import NewtonOptions
 from ..errors import InputError
 from ..params import parse_assignment
 from ..problems import hertz, hertz_friction
@@ -50,6 +51,36 @@ def positive_float(text: str) -> float:
     if not 0 < v < float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
     return v
+
+
+def tolerance(text: str) -> float:
+    """argparse type of --rtol: a number in (0, 1)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0 < v < 1:  # NaN fails too
+        raise argparse.ArgumentTypeError(
+            f"expected a relative tolerance between 0 and 1 (exclusive), e.g. 1e-10, got {text!r}")
+    return v
+
+
+def newton_options(p, rtol: float | None, max_iter: bool = True) -> None:
+    """--rtol (and --max-iter): the Newton options a user may need to change
+    (signorini.NewtonOptions; the command's other Newton settings stay). A
+    default of None: the problem file's value (``signorini run``)."""
+    g = p.add_argument_group("Newton")
+    g.add_argument("--rtol", type=tolerance, default=rtol, metavar="R",
+                   help="Newton stops when the residual norm is below R times the reference "
+                        "(the external forces or the first residual of the increment); an "
+                        "increment whose residual stops falling above R, at the round-off floor "
+                        "of the problem, while the corrections no longer change the displacements "
+                        "is accepted too, and summary.json says so (newton_stops, "
+                        "newton_relative_residuals)")
+    if max_iter:
+        g.add_argument("--max-iter", type=positive_int,
+                       default=None if rtol is None else NewtonOptions.max_iter, metavar="N",
+                       help="Newton iterations per increment before the increment is halved")
 
 
 def parse_sets(items: list[str], allowed: dict) -> dict:

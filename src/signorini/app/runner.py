@@ -16,12 +16,17 @@ from .. import _programs, timing
 from ..post import files as io
 from ..sensitivity import nonsmooth
 from ..errors import InputError
-from ..algorithms.stepping import solve
+from ..algorithms.stepping import last_started, solve
 from ..design.gradient import adjoint_gradient
 from ..errors import ConvergenceError
 from ..linsolve import get_solver
 
 log = logging.getLogger("signorini")
+
+#: what this process's run has so far, for a report if it is interrupted
+#: (:func:`report_interrupt`): its output directory, the stem and summary
+#: entries of its base solve, and the base solution (or its converged part)
+_RUN: dict = {}
 
 
 def prepare_output(out) -> Path:
@@ -44,6 +49,8 @@ def prepare_output(out) -> Path:
     except OSError as e:
         raise InputError(f"cannot write into the output directory {str(out)!r} ({e.strerror or e}); "
                          "choose a writable location") from None
+    _RUN.clear()
+    _RUN["out"] = path
     return path
 
 
@@ -74,9 +81,15 @@ def solver_entries(solver, solution) -> dict:
 
 
 def newton_log(solution) -> dict:
-    """The Newton entries of a summary: iterations and residual norms per increment."""
+    """The Newton entries of a summary, per converged increment: iterations,
+    residual norms, the relative residual reached and why Newton stopped
+    ("rtol", or "round-off floor": the residual stopped falling above rtol while
+    the corrections no longer changed the solution; NewtonOptions)."""
+    incs = solution.increments
     return {"newton_iterations": solution.newton_iterations,
-            "newton_residuals": [inc.newton.residuals for inc in solution.increments]}
+            "newton_residuals": [inc.newton.residuals for inc in incs],
+            "newton_relative_residuals": [float(inc.newton.relative_residual) for inc in incs],
+            "newton_stops": [inc.newton.stop for inc in incs]}
 
 
 def summary_header(status: str, solution=None, reason: str = "") -> dict:
@@ -129,16 +142,71 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
     ``failed`` summary.json with ``extra`` before re-raising."""
     solver = solve_kwargs.get("solver", "auto")
     extra = {**extra, "solver": getattr(solver, "name", solver)}
+    keep_for_interrupt(stem=stem, extra=extra)
     timing.mark("solve")
     try:
         solution = solve(problem, label="base", **solve_kwargs)
+    except KeyboardInterrupt as e:
+        # the load path's converged increments (also when the signal came as it returned)
+        _RUN["solution"] = getattr(e, "partial", None) or last_started("base")
+        raise
     except ConvergenceError as e:
         timing.mark("output")
         if e.partial is not None and e.partial.increments:
             io.write_pvd(e.partial, out / f"{stem}.pvd")
         write_partial(out, e.partial, stem, str(e), extra)
         raise
+    _RUN["solution"] = solution
     return solution
+
+
+SIGNALS = {2: "SIGINT", 15: "SIGTERM"}
+
+
+def keep_for_interrupt(**entries) -> None:
+    """What an interrupt report (:func:`report_interrupt`) of this run writes:
+    ``stem`` (of the ``.pvd`` series), ``extra`` (summary entries), ``solution``
+    (the base solution or its converged part)."""
+    _RUN.update(entries)
+
+
+def note_run(out: Path, kept: str) -> None:
+    """A run without a base solve of its own (a sweep) keeps its work as ``kept``
+    says, and writes no summary of its own when interrupted."""
+    _RUN.clear()
+    _RUN.update(out=Path(out), note=kept)
+
+
+def report_interrupt(signum: int) -> str:
+    """After SIGINT or SIGTERM: keep what this run has (``summary.json`` with status
+    ``interrupted``, first, then the converged increments of its base solve as a
+    ``.pvd`` series) and return the line that says so. A second signal while
+    this is written ends the process at once (the summary is already there)."""
+    name = SIGNALS.get(signum, f"signal {signum}")
+    t = timing.current()
+    during = (t.now() if t is not None else None) or "setup"
+    out = _RUN.get("out")
+    if out is None:
+        return f"interrupted by {name} during {during}, before any output: nothing kept"
+    if "note" in _RUN:
+        return f"interrupted by {name} during {during}: {_RUN['note']} ({out}/)"
+    sol = _RUN.get("solution")
+    summary = summary_header("interrupted", sol, f"interrupted by {name} during {during}")
+    summary.update(_RUN.get("extra", {}))
+    summary["files"] = []
+    write_summary_json(out, summary)
+    kept = "nothing converged"
+    if sol is not None and sol.increments:
+        stem = _RUN.get("stem", "result")
+        try:
+            summary["files"] = [io.write_pvd(sol, out / f"{stem}.pvd").name]
+            write_summary_json(out, summary)
+            n = len(sol.increments)
+            kept = f"{n} converged increment{'s' * (n != 1)} ({stem}.pvd)"
+        except Exception as e:  # noqa: BLE001 - the summary is written; say what failed
+            kept = f"the converged increments could not be written ({e})"
+    return (f"interrupted by {name} during {during}: kept {kept} and summary.json (status "
+            f"'interrupted') in {out}/")
 
 
 def adjoint_report(out: Path, sol, response, names, description: str, solver, ddm: dict) -> dict:

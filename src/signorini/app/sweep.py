@@ -67,6 +67,9 @@ from pathlib import Path
 
 import numpy as np
 from .. import timing
+from ..errors import Interrupted
+from ..post.atomic import atomic
+from . import runner
 from ..linsolve import mkl_threads
 from . import cli
 
@@ -156,16 +159,42 @@ def single_threaded_env() -> None:
         os.environ.setdefault(k, v)
 
 
-def run_point(args: list[str], out: str) -> dict:
+#: a point's record of its completed run (its arguments), beside its summary.json
+POINT_RECORD = ".signorini-point.json"
+
+
+def _recorded(out: Path, args: list[str]) -> dict | None:
+    """The result of this point's earlier run with the same arguments, if it
+    completed (a converged summary.json and the record): a re-run sweep
+    continues from what was recorded instead of running the point again."""
+    try:
+        rec = json.loads((out / POINT_RECORD).read_text())
+        summary = json.loads((out / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if rec.get("args") != [str(a) for a in args] or summary.get("status") != "converged":
+        return None
+    return {"exit_code": 0, "summary": summary, "stderr": "", "stdout": "",
+            "time_s": float(rec.get("time_s", 0.0)), "kept": True}
+
+
+def run_point(args: list[str], out: str, fresh: bool = False) -> dict:
     """One task: ``signorini.app.cli.main(args)`` in this process, with its output captured.
 
     Returns {"exit_code", "summary" (the point's summary.json or None), "stderr"
-    (the last 4000 characters), "time_s"}. Never raises for a failing point.
+    (the last 4000 characters), "time_s"[, "kept"]}. Never raises for a failing
+    point. A point that an earlier run with the same arguments completed is not
+    run again (``"kept": True``), unless ``fresh``.
     """
     single_threaded_env()
     summary_path = Path(out) / "summary.json"
-    if summary_path.is_file():  # a stale summary from an earlier sweep is not this run's
-        summary_path.unlink()
+    if not fresh:
+        kept = _recorded(Path(out), args)
+        if kept is not None:
+            return kept
+    for stale in (summary_path, Path(out) / POINT_RECORD):  # an earlier run's, not this one's
+        if stale.is_file():
+            stale.unlink()
     err, std = _io.StringIO(), _io.StringIO()
     t0 = time.perf_counter()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std), mkl_threads(1):
@@ -176,14 +205,20 @@ def run_point(args: list[str], out: str) -> dict:
         except Exception as e:  # noqa: BLE001  (an unexpected error is this point's failure)
             print(f"signorini: unexpected error: {type(e).__name__}: {e}", file=err)
             code = 3
+    if code in (130, 143):  # the point was interrupted (it kept its work): so is the sweep
+        raise Interrupted(code - 128)
     summary = None
     if summary_path.is_file():
         try:
             summary = json.loads(summary_path.read_text())
         except (OSError, ValueError):
             summary = None
+    elapsed = time.perf_counter() - t0
+    if code == 0 and summary is not None:
+        with atomic(Path(out) / POINT_RECORD) as tmp:
+            tmp.write_text(json.dumps({"args": [str(a) for a in args], "time_s": elapsed}))
     return {"exit_code": int(code), "summary": summary, "stderr": err.getvalue()[-4000:],
-            "stdout": std.getvalue()[-4000:], "time_s": time.perf_counter() - t0}
+            "stdout": std.getvalue()[-4000:], "time_s": elapsed}
 
 
 @contextlib.contextmanager
@@ -283,7 +318,7 @@ def rows(grid_points: list[dict], results: list[dict], dirs: list[str]) -> tuple
 
 
 def write_csv(path, header: list[str], table: list[dict]) -> None:
-    with open(path, "w", newline="") as f:
+    with atomic(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=header, restval="", extrasaction="ignore")
         w.writeheader()
         for r in table:
@@ -303,7 +338,7 @@ def read_csv(path) -> list[dict]:
 # --------------------------------------------------------------------------- sweep
 
 def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), scheduler=None,
-              n_workers=None, sequential: bool = False, client=None) -> Path:
+              n_workers=None, sequential: bool = False, client=None, fresh: bool = False) -> Path:
     """Run ``signorini COMMAND`` at every grid point and collect the summaries.
 
     Point k runs ``signorini.app.cli.main([command, "--out", out/point_<k>, "-q",
@@ -314,7 +349,10 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
     ``client``, or here one after another (``sequential=True``).
 
     Writes ``out/sweep.csv`` and ``out/sweep.json``; returns the path of the CSV.
-    Failing points are recorded (exit code, status, reason), never raised.
+    Failing points are recorded (exit code, status, reason), never raised. A
+    point that an earlier run of the sweep completed with the same arguments is
+    taken from its directory, not run again (``kept`` in sweep.json), unless
+    ``fresh``: an interrupted sweep run again continues where it stopped.
     """
     if not grid_points:
         raise ValueError("the grid has no points")
@@ -322,12 +360,19 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
     out.mkdir(parents=True, exist_ok=True)
     width = max(1, len(str(len(grid_points) - 1)))
     dirs = [f"point_{k:0{width}d}" for k in range(len(grid_points))]
-    arglists = [(point_args(command, p, out / d, extra_args), str(out / d))
+    arglists = [(point_args(command, p, out / d, extra_args), str(out / d), fresh)
                 for p, d in zip(grid_points, dirs)]
+    note = ("the points completed so far are kept in their directories: the same sweep run "
+            "again continues from them")
+    runner.note_run(out, note)
     t0 = time.perf_counter()
     timing.mark("solve")
-    results = map_tasks(run_point, arglists, scheduler=scheduler, n_workers=n_workers,
-                        sequential=sequential, client=client)
+    try:
+        results = map_tasks(run_point, arglists, scheduler=scheduler, n_workers=n_workers,
+                            sequential=sequential, client=client)
+    except KeyboardInterrupt:
+        runner.note_run(out, note)  # a point run here had its own
+        raise
     wall = time.perf_counter() - t0
     timing.mark("output")
     header, table = rows(grid_points, results, dirs)
@@ -344,13 +389,14 @@ def run_sweep(command: str, grid_points: list[dict], out, *, extra_args=(), sche
         "n_failed": sum(r["exit_code"] != 0 for r in results),
         "points": [{"index": k, "point": p, "dir": d, "args": a[0], "exit_code": r["exit_code"],
                     "status": _status(r), "reason": _reason(r), "time_s": r["time_s"],
+                    "kept": bool(r.get("kept", False)),
                     "stderr": r["stderr"], "summary": r["summary"]}
                    for k, (p, d, a, r) in enumerate(zip(grid_points, dirs, arglists, results))],
     }
     t = timing.current()
     if t is not None:
         doc["timings"] = t.split()
-    with open(out / "sweep.json", "w") as f:
+    with atomic(out / "sweep.json") as tmp, open(tmp, "w") as f:
         json.dump(doc, f, indent=1, default=_json_default, allow_nan=True)
     return csv_path
 

@@ -5,7 +5,9 @@ it goes (so that an interrupted optimisation can be resumed from it)."""
 from __future__ import annotations
 
 import csv
+import io
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -86,11 +88,24 @@ def row(r: Evaluation, names: Sequence[str]) -> list:
 
 
 def append_rows(path: Path, names: Sequence[str], records) -> None:
-    """Append evaluations to a history CSV."""
+    """Append evaluations to a history CSV, each row in one write, flushed to
+    the disk (an interrupted run loses at most the row being written, which
+    :func:`read_history` then leaves out)."""
+    buf = io.StringIO()
+    wr = csv.writer(buf)
     with open(path, "a", newline="") as f:
-        wr = csv.writer(f)
         for r in records:
+            buf.seek(0)
+            buf.truncate()
             wr.writerow(row(r, names))
+            f.write(buf.getvalue())
+            f.flush()
+            os.fsync(f.fileno())
+
+
+def _complete(r: dict) -> bool:
+    """A row with every column (csv.DictReader fills the missing ones with None)."""
+    return None not in r.values() and None not in r
 
 
 def read_history(path, names: Sequence[str] | None = None) -> list[Evaluation]:
@@ -107,6 +122,8 @@ def read_history(path, names: Sequence[str] | None = None) -> list[Evaluation]:
     if missing:
         raise InputError(f"the history {str(path)!r} has no column for {missing}")
     out = []
+    if rows and not _complete(rows[-1]):  # a row cut short by an interrupted run
+        rows = rows[:-1]
     for r in rows:
         grad = np.array([float(r[f"dF_d{n}"]) for n in names])
         out.append(Evaluation(int(r["eval"]), r["kind"], np.array([float(r[f"x_{n}"]) for n in names]),

@@ -12,6 +12,7 @@ import meshio
 import numpy as np
 
 from ..contact.friction import STATUS_NAMES
+from .atomic import atomic
 from ..errors import InputError
 
 
@@ -78,8 +79,9 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     if getattr(solution, "shape_gradient", None) is not None and i in (-1, len(solution.increments) - 1):
         point["adjoint_shape_gradient"] = _vec3(solution.shape_gradient)
     mesh = meshio.Mesh(_vec3(X), [("quad", m.conn)], point_data=point, cell_data=cell)
-    mesh.write(path)
-    return path
+    with atomic(path) as tmp:
+        mesh.write(tmp)
+    return Path(path)
 
 
 def write_pvd(solution, path, increments=None) -> Path:
@@ -121,7 +123,8 @@ def write_pvd(solution, path, increments=None) -> Path:
         t = float(solution.increments[i].t)
         lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(vtu.name)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
-    path.write_text("\n".join(lines))
+    with atomic(path) as tmp:
+        tmp.write_text("\n".join(lines))
     return path
 
 
@@ -130,7 +133,7 @@ def write_csv(path, columns: dict) -> Path:
     path = Path(path)
     keys = list(columns)
     rows = zip(*[columns[k] for k in keys])
-    with open(path, "w", newline="") as f:
+    with atomic(path) as tmp, open(tmp, "w", newline="") as f:
         wr = csv.writer(f)
         wr.writerow(keys)
         for r in rows:
@@ -148,5 +151,7 @@ def write_json(path, data: dict) -> Path:
             return o.tolist()
         raise TypeError(type(o))
 
-    path.write_text(json.dumps(data, indent=2, default=conv) + "\n")
+    text = json.dumps(data, indent=2, default=conv) + "\n"
+    with atomic(path) as tmp:
+        tmp.write_text(text)
     return path

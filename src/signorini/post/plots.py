@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .atomic import atomic
+
 
 def subplots(*args, **kwargs):
     """``(figure, axes)`` as ``pyplot.subplots`` makes them, on an Agg canvas."""
@@ -22,8 +24,9 @@ def subplots(*args, **kwargs):
 
 
 def save(fig, path) -> Path:
-    """Write ``fig`` to ``path`` (the format from the extension)."""
-    fig.savefig(path)
+    """Write ``fig`` to ``path`` (the format from the extension), atomically."""
+    with atomic(path) as tmp:
+        fig.savefig(tmp)
     return Path(path)
 
 

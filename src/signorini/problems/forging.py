@@ -139,10 +139,10 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
     )
 
 
-def options(rtol: float = 1e-11):
+def options(rtol: float = 1e-11, max_iter: int = NewtonOptions.max_iter):
     """Newton options of the forging runs: a line search on the residual norm stops
     stick/slip cycling without cutting load steps (the path stays the same)."""
-    return NewtonOptions(rtol=rtol, line_search=True)
+    return NewtonOptions(rtol=rtol, max_iter=max_iter, line_search=True)
 
 
 def check_shape(phi) -> None:

@@ -14,10 +14,10 @@ from ...problems import forging
 from ...problems.forging import (
     DEFAULTS, H0, TABLE1, body_volume, die_force, forging_problem, lateral_nodes, objective, options)
 from ..options import (
-    Formatter, adjoint_option, finish, forging_mesh_options, parse_sets, print_adjoint, set_help,
-    solver_options, with_defaults)
+    Formatter, adjoint_option, finish, forging_mesh_options, newton_options, parse_sets,
+    print_adjoint, set_help, solver_options, with_defaults)
 from ..runner import (
-    Timer, adjoint_report, prepare_output, solve_or_report, solver_entries, summary_header, use_solver,
+    Timer, adjoint_report, newton_log, prepare_output, solve_or_report, solver_entries, summary_header, use_solver,
     write_summary)
 
 NAME = "forging"
@@ -57,6 +57,7 @@ def add_parser(sub) -> None:
     fg.add_argument("--no-fd", action="store_true",
                     help="skip the central-difference check (14 re-solves of the whole path)")
     adjoint_option(fg, "F")
+    newton_options(fg, 1e-11)
     solver_options(fg)
 
 
@@ -65,7 +66,7 @@ def execute(args) -> int:
     params = parse_sets(args.set, FORGING_SET)
     s = run(args.out, params, mesh=forging.parse_mesh(args.mesh), steps=args.steps,
                     fd_check=not args.no_fd, solver=args.solver, force_size=args.force_size,
-                    adjoint=args.adjoint)
+                    adjoint=args.adjoint, rtol=args.rtol, max_iter=args.max_iter)
     print(f"forging ({s['mesh']['dofs']} DOFs, {s['steps']} increments, mu = "
           f"{s['params']['mu']:g}): F = {s['F']:.6g}, max |r - h0| / h0 = "
           f"{s['max_rel_deviation_from_r_opt']:.4f}, die force {s['die_force_final']:.5g}, "
@@ -82,7 +83,7 @@ def execute(args) -> int:
 @timing.recorded
 def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         fd_check: bool = True, solver="auto", force_size: bool = False, rtol: float = 1e-11,
-        fd_step: float = 1e-6, adjoint: bool = False) -> dict:
+        fd_step: float = 1e-6, adjoint: bool = False, max_iter: int = 25) -> dict:
     """Upset the billet with DDM sensitivities of the objective F (eq. 24) and write results.
 
     Writes into ``out``: ``summary.json`` (F, DF/Dphi_k, DF/Dmu, DF/Dsigma_y by DDM
@@ -105,7 +106,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     out = prepare_output(out)
     pb = forging_problem(params, mesh=mesh, force_size=force_size)
     v = pb.params
-    opts = options(rtol)
+    opts = options(rtol, max_iter)
     solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
     names = list(TABLE1)
     info = {"n_r": mesh[0], "n_z": mesh[1], "nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells}
@@ -157,7 +158,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "die_force_final": force[-1],
         "volume": {"initial": vol0, "final": vol1, "ratio": vol1 / vol0},
         "max_equivalent_plastic_strain": float(np.asarray(sol.increments[-1].state[2])[..., 9].max()),
-        "newton_iterations": sol.newton_iterations,
+        **newton_log(sol),
         "time_solve_s": t_solve,
         "time_wall_s": clock(),
     })

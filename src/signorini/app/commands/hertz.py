@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...algorithms.newton import NewtonOptions
+from ...algorithms.coarse_to_fine import failed_levels
 from ...design.finite_differences import finite_difference
 from ...model import checks
 from ...post import files as io, plots
@@ -15,13 +16,15 @@ from ...problems.hertz import (
     pressure, pressure_dR)
 from ..options import (
     UNITS, Formatter, coarse_start_option, common_options, finish, fmt_coarse, fmt_fd, nominal_a0,
-    parse_sets, with_defaults)
+    newton_options, parse_sets, with_defaults)
 from ... import timing
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
     use_solver, write_summary)
 
 NAME = "hertz"
+#: Newton's default tolerance of this command (--rtol)
+RTOL = 1e-11
 
 
 #: what the --set parameters of the Hertz problems are (their defaults are the builders')
@@ -48,6 +51,7 @@ def add_parser(sub) -> None:
     h.add_argument("--method", choices=["al", "penalty"], default="al",
                    help="contact method: augmented Lagrangian (exact) or penalty (comparator)")
     coarse_start_option(h)
+    newton_options(h, RTOL)
 
 
 def execute(args) -> int:
@@ -56,7 +60,8 @@ def execute(args) -> int:
     s = run(args.out, params, refine=args.refine, method=args.method,
                   finite_strain=args.finite_strain, steps=args.steps, fd_check=not args.no_fd,
                   solver=args.solver, size=args.block, zone=args.zone_width,
-                  force_size=args.force_size, coarse_start=not args.no_coarse_start)
+                  force_size=args.force_size, coarse_start=not args.no_coarse_start,
+                  options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
     print(f"Hertz ({args.method}, {s['mesh']['dofs']} DOFs): p0 = {s['p0']['computed']:.5g} "
           f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
           f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
@@ -92,7 +97,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
 
     clock = Timer()
     out = prepare_output(out)
-    options = options or NewtonOptions(rtol=1e-11)
+    options = options or NewtonOptions(rtol=RTOL)
     solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
     sensitivities = list(sensitivities)
     pb = hertz_problem(params, refine=refine, method=method, finite_strain=finite_strain, size=size,
@@ -113,6 +118,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           wrt=sensitivities, options=options, solver=solver,
                           start=guide)
+    for message in failed_levels(levels):
+        checks.warn(sol, message)
     t_solve = clock() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]

@@ -7,14 +7,16 @@ import numpy as np
 
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
+from ...algorithms.coarse_to_fine import failed_levels
 from ...errors import InputError
+from ...model import checks
 from ...post import files as io, plots
 from ...problems import hertz
 from ...problems.hertz_friction import (
     BLOCK, DEFAULTS, hertz_friction_problem, load_increments, stick_zone)
 from ..options import (
     UNITS, Formatter, adjoint_option, coarse_start_option, common_options, finish, fmt_fd,
-    nominal_a0, parse_sets, print_adjoint, with_defaults)
+    newton_options, nominal_a0, parse_sets, print_adjoint, with_defaults)
 from .hertz import HERTZ_TEXTS
 from ... import timing
 from ..runner import (
@@ -44,6 +46,8 @@ def add_parser(sub) -> None:
             "and P3 = P must be increments)", nominal_a0("hertz_friction"), block=80.0)
     coarse_start_option(f)
     adjoint_option(f, "the contact work W = sum A p_N (g0 - g) at P")
+    # 1e-10 leaves margin above the residual's round-off floor at the small early loads
+    newton_options(f, 1e-10)
 
 
 def execute(args) -> int:
@@ -53,7 +57,8 @@ def execute(args) -> int:
                            fd_check=not args.no_fd, solver=args.solver, size=args.block,
                            zone=args.zone_width, finite_strain=args.finite_strain,
                            force_size=args.force_size, coarse_start=not args.no_coarse_start,
-                           adjoint=args.adjoint)
+                           adjoint=args.adjoint,
+                           options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
     ca = ", ".join(f"{lv['c_over_a']:.3f} [{lv['c_over_a_bracket'][0]:.3f}, "
                    f"{lv['c_over_a_bracket'][1]:.3f}]" for lv in s["loads"])
     print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
@@ -113,6 +118,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     sol = solve_or_report(out, "hertz_friction", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           wrt=sensitivities, options=options, solver=solver,
                           start=guide)
+    for message in failed_levels(coarse):
+        checks.warn(sol, message)
     t_solve = clock() - t0
 
     adj = _adjoint(out, sol, sensitivities, solver) if adjoint else None

@@ -26,9 +26,9 @@ from ...post import files as io, plots
 from ...problems import forging
 from ...problems.forging_opt import PHI_MIN, START, base_problem, objective_for
 from ..options import (
-    Formatter, dask_options, finish, forging_mesh_options, positive_float, positive_int,
-    solver_options)
-from ..runner import prepare_output, write_summary_json
+    Formatter, dask_options, finish, forging_mesh_options, newton_options, positive_float,
+    positive_int, solver_options)
+from ..runner import note_run, prepare_output, write_summary_json
 from ..sweep import map_tasks, single_threaded_env
 
 log = logging.getLogger("signorini")
@@ -63,6 +63,8 @@ def add_parser(sub) -> None:
     o.add_argument("--resume", action="store_true",
                    help="continue from the best point of each mu's history.csv in --out")
     dask_options(o)
+    # --maxiter is BFGS's: the forging solves keep Newton's default iterations
+    newton_options(o, 1e-11, max_iter=False)
     solver_options(o)
 
 
@@ -76,7 +78,7 @@ def execute(args) -> int:
         raise InputError(f"--mu needs friction coefficients >= 0, got {args.mu!r}")
     kwargs = dict(mesh=forging.parse_mesh(args.mesh), steps=args.steps, method=args.method,
                   gtol=args.gtol, maxiter=args.maxiter, gradient=args.gradient,
-                  resume=args.resume, solver=args.solver)
+                  resume=args.resume, solver=args.solver, rtol=args.rtol)
     if len(mus) > 1 and not args.sequential:  # one Dask task per mu
 
         s = optimize_mus_parallel(args.out, mus, scheduler=args.scheduler,
@@ -166,7 +168,8 @@ def optimize_mu(out: Path, mu: float, *, mesh=(10, 20), steps: int = 50, method:
     """One mu: optimise, write ``out/mu_<mu>/`` and return its summary (see :func:`run`)."""
 
     t0 = time.perf_counter()
-    d = prepare_output(_mu_dir(Path(out), mu))
+    d = _mu_dir(Path(out), mu)
+    d.mkdir(parents=True, exist_ok=True)  # out is checked (prepare_output) by the caller
     hist = d / "history.csv"
     x0, resumed = _start(hist, resume)
     obj = objective_for(mu, mesh=mesh, steps=steps, rtol=rtol, solver=solver, gradient=gradient,
@@ -283,6 +286,8 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
     if not mus or any(not (np.isfinite(m) and m >= 0) for m in mus):
         raise InputError(f"mus must be non-negative finite numbers, got {mus}")
     out = prepare_output(out)
+    note_run(out, "every evaluation is recorded in mu_<value>/history.csv: the same command with "
+                  "--resume continues from the best point of each")
     base_problem(tuple(mesh))  # bad mesh input fails here, before any optimisation
     kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
                   gradient=gradient, resume=resume, solver=solver, rtol=rtol, phi_min=phi_min)

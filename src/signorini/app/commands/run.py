@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .. import problemfile
-from ..options import Formatter, finish, solver_options
+from ..options import Formatter, finish, newton_options, solver_options
 
 NAME = "run"
 
@@ -17,12 +17,14 @@ def add_parser(sub) -> None:
                     "and write summary.json, contact tables, VTU and a .pvd series into --out.")
     r.add_argument("file", metavar="FILE", help="the problem file (.toml)")
     r.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    newton_options(r, None)  # default: the file's [solve] rtol and max_iter
     solver_options(r)
 
 
 def execute(args) -> int:
     """Run the command for parsed ``args``; the exit code."""
-    s = problemfile.run(args.file, args.out, solver=args.solver, force_size=args.force_size)
+    s = problemfile.run(args.file, args.out, solver=args.solver, force_size=args.force_size,
+                        rtol=args.rtol, max_iter=args.max_iter)
     print(f"{args.file}: {s['status']}, {s['increments']} increment(s), "
           f"{s['mesh'].get('dofs', '?')} DOFs, Newton iterations {s['newton_iterations']}")
     for name, r in s.get("responses", {}).items():

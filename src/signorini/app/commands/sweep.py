@@ -32,6 +32,10 @@ def add_parser(sub) -> None:
                     help="values of a --set parameter (repeatable); START:STOP:NUM for a linspace")
     sw.add_argument("--option", action="append", default=[], metavar="NAME=V1,V2,...",
                     help="values of a command option, e.g. refine=0,1 (passed as --refine 0 ...)")
+    sw.add_argument("--fresh", action="store_true",
+                    help="run every point again (by default a point that an earlier run of the "
+                         "same sweep completed, with the same arguments, is taken from its "
+                         "directory: an interrupted sweep run again continues where it stopped)")
     dask_options(sw)
     v = sw.add_mutually_exclusive_group()
     v.add_argument("-q", "--quiet", action="store_true", help="print only errors and the result")
@@ -49,7 +53,7 @@ def execute(args) -> int:
         raise InputError(f"sweep: {e}") from None
     csv_path = sweep.run_sweep(args.sweep_command, points, args.out, extra_args=args.extra,
                                scheduler=args.scheduler, n_workers=args.workers,
-                               sequential=args.sequential)
+                               sequential=args.sequential, fresh=args.fresh)
     table = sweep.read_csv(csv_path)
     failed = [r for r in table if str(r.get("exit_code")) not in ("0", "0.0")]
     print(f"sweep of {args.sweep_command}: {len(table)} points, {len(failed)} failed; "

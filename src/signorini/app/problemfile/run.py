@@ -4,6 +4,7 @@ the files (summary.json, contact tables, VTU, a .pvd series)."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -16,12 +17,17 @@ from ...algorithms.stepping import solve
 from ...linsolve import check_size
 from ...post import files as io
 from ... import timing
-from ..runner import prepare_output, use_solver, write_summary_json
+from ..runner import keep_for_interrupt, prepare_output, use_solver, write_summary_json
 
 
 from .schema import Response, RunConfig, load
 
 __all__ = ["run"]
+
+
+def _finite(x: float):
+    """A float for JSON (None for NaN: no residual evaluated)."""
+    return float(x) if x == x else None
 
 
 def _jsonable(o):
@@ -113,7 +119,8 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
 
 
 @timing.recorded
-def run(path, out, *, solver="auto", progress=None, force_size: bool = False) -> dict:
+def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
+        rtol: float | None = None, max_iter: int | None = None) -> dict:
     """Load a problem file, solve it with DDM sensitivities and write the results.
 
     Args:
@@ -122,6 +129,8 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
         solver: linear solver name for :func:`signorini.solve`.
         progress: reserved for progress reporting (accepted, not used yet).
         force_size: run even if the estimated memory exceeds what is available.
+        rtol, max_iter: Newton's tolerance and iterations per increment in place of
+            the file's ``[solve]`` values (None: the file's).
 
     Returns:
         The summary (also written to ``out/summary.json``).
@@ -136,6 +145,9 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
 
     t_start = time.perf_counter()
     problem, cfg = load(path)
+    given = {k: v for k, v in (("rtol", rtol), ("max_iter", max_iter)) if v is not None}
+    if given:
+        cfg = dataclasses.replace(cfg, options=dataclasses.replace(cfg.options, **given))
     out = prepare_output(out)
     n_contact = sum(len(np.unique(problem.mesh.edge_set(c.edges))) * c.method.n_multipliers
                     for c in problem.contact)
@@ -155,9 +167,13 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
     t0 = time.perf_counter()
     error = None
     timing.mark("solve")
+    keep_for_interrupt(stem=cfg.stem, extra=dict(summary, status="interrupted"))
     try:
         sol = solve(problem, steps=cfg.steps, wrt=list(cfg.sensitivities),
                     options=cfg.options, solver=solver, label="base")
+    except KeyboardInterrupt as e:
+        keep_for_interrupt(solution=getattr(e, "partial", None))
+        raise
     except SolverError as e:  # ConvergenceError keeps the converged increments in .partial
         error, sol = e, getattr(e, "partial", None)
     summary["time_solve_s"] = time.perf_counter() - t0
@@ -172,7 +188,8 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False) ->
         summary["newton_iterations"] = list(sol.newton_iterations)
         summary["newton_log"] = [  # every attempted increment, including cut and failed ones
             {"t": float(s.t), "dt": float(s.dt), "iterations": s.iterations,
-             "converged": bool(s.converged), **({"reason": s.reason} if s.reason else {})}
+             "converged": bool(s.converged), "relative_residual": _finite(s.relative_residual),
+             **({"stop": s.stop} if s.stop else {}), **({"reason": s.reason} if s.reason else {})}
             for s in getattr(sol, "log", [])]
         summary["warnings"] = _jsonable(list(cfg.warnings) + list(getattr(sol, "warnings", [])))
     else:

@@ -448,7 +448,11 @@ def _solve(rd: _Reader, data):
     if len(set(sens)) != len(sens):
         raise t.err("sensitivities", f"lists a parameter twice: {sens}")
     d = NewtonOptions()
-    opts = NewtonOptions(rtol=t.real("rtol", d.rtol, nonnegative=True),
+    rtol = t.real("rtol", d.rtol, nonnegative=True)
+    if not rtol < 1:
+        raise t.err("rtol", f"must be below 1 (a fraction of the reference residual, e.g. 1e-10), "
+                            f"got {rtol!r}")
+    opts = NewtonOptions(rtol=rtol,
                          atol=t.real("atol", d.atol, nonnegative=True),
                          max_iter=t.integer("max_iter", d.max_iter, minimum=1),
                          max_cuts=t.integer("max_cuts", d.max_cuts, minimum=0),
