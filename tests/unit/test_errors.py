@@ -145,7 +145,7 @@ def test_obstacle_not_touching_under_force_control(problem):
 
 def test_newton_failure_after_cuts(problem):
     # the Hertz problem needs ~4 Newton iterations (contact set changes): 1 is not enough
-    with pytest.raises(ConvergenceError, match=r"after 1 step cuts \(no convergence in 1 iterations\)") as e:
+    with pytest.raises(ConvergenceError, match=r"after 1 step cuts \(no convergence in 1 iterations \(last") as e:
         sg.solve(problem, options=sg.NewtonOptions(max_iter=1, max_cuts=1))
     assert_ours(e)
     partial = e.value.partial

@@ -119,11 +119,15 @@ def test_bad_forging_input(tmp_path, capsys, argv, fragment):
 
 @pytest.mark.timeout(300)
 def test_excessive_stroke_fails_cleanly_and_keeps_increments(tmp_path, capsys):
-    """A 95 % stroke on a coarse mesh cannot be followed to the end: the command
-    exits with 1, names the load factor reached and keeps the converged increments."""
+    """A 98 % stroke on a coarse mesh cannot be followed to the end (near t = 0.95
+    Newton stalls at 4e-6 of the reference, far above the round-off floor, the
+    flattened cells being near inversion): the command exits with 1, names the
+    load factor reached and keeps the converged increments. (A 95 % stroke now
+    ends: its last increments converge at floors of 1e-9 to 2e-8 of the
+    reference, which summary.json reports.)"""
     out = tmp_path / "inv"
     assert main(["forging", "--out", str(out), "--mesh", "4x8", "--steps", "10", "--no-fd", "-q",
-                 "--set", "stroke=0.95"]) == 1
+                 "--set", "stroke=0.98"]) == 1
     err = capsys.readouterr().err
     assert "the solve failed" in err and "load factor reached" in err and "Traceback" not in err
     s = json.loads((out / "summary.json").read_text())

@@ -22,7 +22,7 @@ import warnings
 from .. import progress, timing
 from .._version import __version__
 from ..errors import ConvergenceError, Interrupted, SignoriniError, SignoriniWarning
-from . import registry
+from . import registry, runner
 from .options import UNITS, Formatter
 
 
@@ -146,8 +146,6 @@ def _main(argv) -> int:
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM (_signals): keep what converged
         signum = getattr(e, "signum", signal.SIGINT)
         with _signals(final=128 + signum):
-            from . import runner  # noqa: PLC0415  (loaded by every command that ran)
-
             print(file=sys.stderr)  # past a progress bar's line
             print(f"signorini: {runner.report_interrupt(signum)}", file=sys.stderr)
         return 128 + signum
