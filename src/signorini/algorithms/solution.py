@@ -238,9 +238,13 @@ class Solution:
                 unit_tangents(self.jax_params, self.names))
 
     def _contact_fields(self, i: int, surface: int):
-        """(gap, p_N, p_T, area of a surface's nodes, {name: their derivatives}),
-        through the contact kind's programs (JVP along the DDM sensitivities)."""
+        """(gap, p_N, p_T, area of a surface's nodes, {name: their derivatives}): a
+        response program of the model on a mesh evaluated by whole-mesh programs,
+        else the contact kind's programs (JVP along the DDM sensitivities)."""
         m, inc = self.model, self._inc(i)
+        if not m.by_kind:
+            fn = lambda w, p, t: m.contact_fields(w, p, t, surface)  # noqa: E731
+            return self.response(fn, i, key=("contact", surface))
         val = m.compiled.fields(inc.w, self.jax_params, inc.t, surface)
         if not self.names:
             return val, {}
@@ -252,9 +256,15 @@ class Solution:
     def stress(self, i: int = -1):
         """Element-averaged Cauchy stress (n_cells, 3, 3) and its sensitivities
         (with a material history: the stress of the update from the state before
-        increment i, whose sensitivity the JVP carries too); through the element
+        increment i, whose sensitivity the JVP carries too): a response program of
+        the model on a mesh evaluated by whole-mesh programs, else the element
         kind's programs."""
         m, inc = self.model, self._inc(i)
+        if not m.by_kind:
+            if m.n_state:
+                return self.history_response(lambda w, p, t, st: m.stresses(w, p, st), i,
+                                             key=("stress-history",))
+            return self.response(lambda w, p, t: m.stresses(w, p), i, key=("stress",))
         state, sdot = self.state_before(i) if m.n_state else (None, None)
         ue, Xe, mp, he = m._cell_arrays(inc.w, self.jax_params, state)
         (val,) = m.cells("stress", (0,), (ue, Xe, he), mp)
