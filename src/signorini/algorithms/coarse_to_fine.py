@@ -75,8 +75,8 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
     with the coarser levels after it: the next mesh solved (the finest) is
     guided by the last level that converged along the whole path, or starts
     without a guide (recorded as ``failed`` in the level, and as a warning in
-    the finest solution when ``whole_path``; :func:`failed_levels` gives the
-    warning's text). The finest level's failure is raised.
+    the finest solution when ``whole_path``; :func:`warn_failed_levels` puts
+    them into a solution of another mesh). The finest level's failure is raised.
 
     Returns:
         (solution of the finest problem, per level: dofs, Newton iterations per
@@ -117,18 +117,16 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
                        "time_s": time.perf_counter() - t0, **level})
         log.debug("coarse-to-fine level %d: %d DOFs, %s iterations", k, levels[-1]["dofs"], done)
     if whole_path:
-        for message in failed_levels(levels):
-            checks.warn(sol, message)
+        warn_failed_levels(sol, levels)
     return sol, levels
 
 
-def failed_levels(levels: list[dict]) -> list[str]:
-    """The warnings of the coarse levels that failed (:func:`solve_coarse_to_fine`)."""
-    out = []
+def warn_failed_levels(solution: Solution, levels: list[dict]) -> None:
+    """A warning in ``solution`` (the mesh the levels started) for every coarse
+    level that failed (``levels`` of :func:`solve_coarse_to_fine`)."""
     for k, lv in enumerate(levels):
         if "failed" in lv:
-            out.append(f"the coarse start's level {k} ({lv.get('dofs', '?')} DOFs) failed and was "
-                       f"abandoned ({lv['failed']}); the mesh after it started "
-                       "without its guide (the result is the same, Newton may need more "
-                       "iterations)")
-    return out
+            checks.warn(solution, f"the coarse start's level {k} ({lv.get('dofs', '?')} DOFs) "
+                                  f"failed and was abandoned ({lv['failed']}); the mesh after it "
+                                  "started without its guide (the result is the same, Newton may "
+                                  "need more iterations)")

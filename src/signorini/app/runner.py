@@ -148,7 +148,7 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
         solution = solve(problem, label="base", **solve_kwargs)
     except KeyboardInterrupt as e:
         # the load path's converged increments (also when the signal came as it returned)
-        _RUN["solution"] = getattr(e, "partial", None) or last_started("base")
+        keep_for_interrupt(solution=getattr(e, "partial", None) or last_started("base"))
         raise
     except ConvergenceError as e:
         timing.mark("output")
@@ -156,7 +156,7 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
             io.write_pvd(e.partial, out / f"{stem}.pvd")
         write_partial(out, e.partial, stem, str(e), extra)
         raise
-    _RUN["solution"] = solution
+    keep_for_interrupt(solution=solution)
     return solution
 
 

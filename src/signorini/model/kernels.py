@@ -165,8 +165,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         self._cases_whole = program(self.cases, "cases")
         self._fields_whole = program(self.contact_fields, "fields", static_argnums=3)
         self._update_whole = program(self.update, "update")
-        self._stiffness_whole = program(
-            lambda p: self._elements(jnp.zeros(self.n_dof), p, None, True)[1], "stiffness")
+        self._stiffness_whole = program(self.stiffness_pure, "stiffness")
         self._update_jvp_whole = program(jax.vmap(
             lambda w, p, t, s, wd, e, sd: jax.jvp(lambda w_, p_, s_: self.update(w_, p_, t, s_),
                                                   (w, p, s), (wd, e, sd))[1],
@@ -393,6 +392,11 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             R = R.at[s.dofs.ravel()].add(rc.ravel())
             blocks.append(Kc)
         return R, blocks
+
+    def stiffness_pure(self, params):
+        """Pure function: the element stiffness K_e (n_cells, 8, 8) of a linear body,
+        the tangent of every cell at u = 0 by a vmap over the whole mesh."""
+        return self._elements(jnp.zeros(self.n_dof), params, None, True)[1]
 
     def _local_cases_impl(self, w, params, t, state_n, Ke=None):
         """:meth:`_local_impl` with the friction case flags computed first, once, and

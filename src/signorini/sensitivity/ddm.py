@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jax import jax, jnp, to_device
+from .._jax import jax, to_device
 from ..errors import NonDifferentiableError
 from ..params import unit_tangents
 
@@ -82,7 +82,7 @@ class DDM:
         self._material_pseudo = model.program(jax.vmap(material_pseudo, (None, None, None, 0)),
                                               "ddm_material_pseudo")
         self._dke_whole = model.program(jax.vmap(lambda p, e: jax.jvp(
-            lambda p_: model._elements(jnp.zeros(model.n_dof), p_, None, True)[1], (p,), (e,))[1],
+            model.stiffness_pure, (p,), (e,))[1],
             (None, 0)), "ddm_dke")
         # Names whose pseudo-load has no internal-force part can skip the element
         # kernels (the costly half of a pseudo-load): those that enter neither the

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import timing
+from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
 from ...errors import InputError
 from ...post import files as io, plots
@@ -17,8 +18,8 @@ from ..options import (
     Formatter, adjoint_option, finish, forging_mesh_options, newton_options, parse_sets,
     print_adjoint, set_help, solver_options, with_defaults)
 from ..runner import (
-    Timer, adjoint_report, newton_log, prepare_output, solve_or_report, solver_entries, summary_header, use_solver,
-    write_summary)
+    Timer, adjoint_report, newton_log, prepare_output, solve_or_report, solver_entries,
+    summary_header, use_solver, write_summary)
 
 NAME = "forging"
 
@@ -83,7 +84,8 @@ def execute(args) -> int:
 @timing.recorded
 def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         fd_check: bool = True, solver="auto", force_size: bool = False, rtol: float = 1e-11,
-        fd_step: float = 1e-6, adjoint: bool = False, max_iter: int = 25) -> dict:
+        fd_step: float = 1e-6, adjoint: bool = False,
+        max_iter: int = NewtonOptions.max_iter) -> dict:
     """Upset the billet with DDM sensitivities of the objective F (eq. 24) and write results.
 
     Writes into ``out``: ``summary.json`` (F, DF/Dphi_k, DF/Dmu, DF/Dsigma_y by DDM

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...algorithms.newton import NewtonOptions
-from ...algorithms.coarse_to_fine import failed_levels
+from ...algorithms.coarse_to_fine import warn_failed_levels
 from ...design.finite_differences import finite_difference
 from ...model import checks
 from ...post import files as io, plots
@@ -118,8 +118,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           wrt=sensitivities, options=options, solver=solver,
                           start=guide)
-    for message in failed_levels(levels):
-        checks.warn(sol, message)
+    warn_failed_levels(sol, levels)
     t_solve = clock() - t0
     c = sol.contact()
     x = c["x_ref"][:, 0]

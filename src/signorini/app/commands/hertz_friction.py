@@ -7,9 +7,8 @@ import numpy as np
 
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
-from ...algorithms.coarse_to_fine import failed_levels
+from ...algorithms.coarse_to_fine import warn_failed_levels
 from ...errors import InputError
-from ...model import checks
 from ...post import files as io, plots
 from ...problems import hertz
 from ...problems.hertz_friction import (
@@ -118,8 +117,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     sol = solve_or_report(out, "hertz_friction", pb, {"params": v, "mesh": mesh_info}, steps=steps,
                           wrt=sensitivities, options=options, solver=solver,
                           start=guide)
-    for message in failed_levels(coarse):
-        checks.warn(sol, message)
+    warn_failed_levels(sol, coarse)
     t_solve = clock() - t0
 
     adj = _adjoint(out, sol, sensitivities, solver) if adjoint else None
