@@ -2,34 +2,56 @@
 exact sensitivities (DDM and adjoint).
 
 The names below are the public API, by topic; each lives in the package of its
-layer (docs/architecture.md). Importing signorini configures JAX for float64
-on the CPU (:mod:`signorini._jax`, the one place that does) and registers the
-0.1 module paths as deprecated aliases of the new ones
+layer (docs/architecture.md) and is imported when first used, so ``import
+signorini`` itself is quick. Importing signorini configures JAX for float64 on
+the CPU (before JAX is imported, through JAX's environment settings; after, by
+:mod:`signorini._jax`, which every module using JAX imports first) and
+registers the 0.1 module paths as deprecated aliases of the new ones
 (:mod:`signorini._compat`); it has no other side effect.
 """
 
-from . import _jax  # noqa: F401  (float64 before anything else touches JAX)
+import importlib as _importlib
+import os as _os
+import sys as _sys
+
 from . import _compat
 from ._version import __version__
-from .algorithms.newton import NewtonOptions
-from .algorithms.solution import Solution
-from .algorithms.stepping import Start, solve
-from .contact import AugmentedLagrangian, Contact, Coulomb, Penalty, equivalent_areas
-from .contact.obstacles import Circle, Line
-from .design.finite_differences import finite_difference
-from .design.gradient import Gradient, gradient
-from .errors import (
-    ConvergenceError, InputError, InvertedElementError, NonDifferentiableError, ResourceError,
-    SignoriniError, SignoriniWarning, SingularTangentError, SolverError, UnknownParameterError)
-from .fem.element import FBar, Standard
-from .fem.kinematics import Axisymmetric, PlaneStrain
-from .fem.loads import Fixed, Pressure, Traction
-from .fem.mesh import Mesh, graded_coordinates, rectangle
-from .fem.meshfile import read_mesh
-from .materials import J2Plasticity, LinearElastic, NeoHooke
-from .model.problem import Problem
-from .post.files import write_pvd, write_vtu
-from .sensitivity.methods import DDM, Adjoint, FiniteDifferences
+
+# float64 on the CPU, set for JAX before it is imported (by the first name below
+# that needs it: signorini._jax configures it again then, and is the one place
+# that does when JAX was imported first)
+if "jax" in _sys.modules:
+    from . import _jax  # noqa: F401
+else:
+    _os.environ.setdefault("JAX_PLATFORMS", "cpu")
+    _os.environ["JAX_ENABLE_X64"] = "1"
+
+#: public name -> the module that defines it; each module is imported when one
+#: of its names is first asked for (``signorini.Problem``, ``from signorini import
+#: solve``), so that ``import signorini`` and the ``signorini`` command start fast
+_WHERE = {
+    **dict.fromkeys(("NewtonOptions",), "algorithms.newton"),
+    **dict.fromkeys(("Solution",), "algorithms.solution"),
+    **dict.fromkeys(("Start", "solve"), "algorithms.stepping"),
+    **dict.fromkeys(("AugmentedLagrangian", "Contact", "Coulomb", "Penalty", "equivalent_areas"),
+                    "contact"),
+    **dict.fromkeys(("Circle", "Line"), "contact.obstacles"),
+    **dict.fromkeys(("finite_difference",), "design.finite_differences"),
+    **dict.fromkeys(("Gradient", "gradient"), "design.gradient"),
+    **dict.fromkeys(("ConvergenceError", "InputError", "InvertedElementError",
+                     "NonDifferentiableError", "ResourceError", "SignoriniError",
+                     "SignoriniWarning", "SingularTangentError", "SolverError",
+                     "UnknownParameterError"), "errors"),
+    **dict.fromkeys(("FBar", "Standard"), "fem.element"),
+    **dict.fromkeys(("Axisymmetric", "PlaneStrain"), "fem.kinematics"),
+    **dict.fromkeys(("Fixed", "Pressure", "Traction"), "fem.loads"),
+    **dict.fromkeys(("Mesh", "graded_coordinates", "rectangle"), "fem.mesh"),
+    **dict.fromkeys(("read_mesh",), "fem.meshfile"),
+    **dict.fromkeys(("J2Plasticity", "LinearElastic", "NeoHooke"), "materials"),
+    **dict.fromkeys(("Problem",), "model.problem"),
+    **dict.fromkeys(("write_pvd", "write_vtu"), "post.files"),
+    **dict.fromkeys(("DDM", "Adjoint", "FiniteDifferences"), "sensitivity.methods"),
+}
 
 __all__ = [
     # the problem: mesh, kinematics, element, material, supports and loads, contact
@@ -56,5 +78,15 @@ _compat.install()
 
 
 def __getattr__(name):
-    """The 0.1 module names (``sg.io``, ...): the new module, with a DeprecationWarning."""
-    return _compat.module_attribute(name)
+    """A public name, imported from its module when first asked for; or one of the
+    0.1 module names (``sg.io``, ...): the new module, with a DeprecationWarning."""
+    where = _WHERE.get(name)
+    if where is None:
+        return _compat.module_attribute(name)
+    value = getattr(_importlib.import_module(f"{__name__}.{where}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

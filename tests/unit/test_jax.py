@@ -17,3 +17,24 @@ def test_persistent_cache_directory(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True).stdout.split()
     assert out[0] == "None"
+
+
+def test_import_signorini_is_quick_and_still_float64():
+    """``import signorini`` imports no JAX (its names load when first used); JAX is
+    in 64-bit mode whether it is imported after signorini or before it."""
+    after = ("import sys, signorini; assert 'jax' not in sys.modules; import jax, jax.numpy as jnp; "
+             "print(jnp.ones(1).dtype, jax.devices()[0].platform)")
+    before = ("import jax, jax.numpy as jnp, signorini as sg; sg.Problem; "
+              "print(jnp.ones(1).dtype, jax.devices()[0].platform)")
+    for code in (after, before):
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             check=True).stdout.split()
+        assert out == ["float64", "cpu"], code
+
+
+def test_public_names_resolve():
+    import signorini as sg
+
+    for name in sg.__all__:
+        assert getattr(sg, name) is not None
+    assert set(sg.__all__) - {"__version__"} == set(sg._WHERE)

@@ -19,17 +19,19 @@ import sys
 import threading
 import warnings
 
-from .. import progress, timing
+from .. import timing
 from .._version import __version__
 from ..errors import ConvergenceError, Interrupted, SignoriniError, SignoriniWarning
-from . import registry, runner
-from .options import UNITS, Formatter
+from ..post import plots
+from . import registry
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The parser of every command in :data:`signorini.app.registry.COMMANDS`, or of
     command ``only`` alone (what a run needs: the other commands' modules are not
     imported then)."""
+    from .options import UNITS, Formatter  # noqa: PLC0415  (lazy: the library, after the figure helper started)
+
     parser = argparse.ArgumentParser(
         prog="signorini", formatter_class=Formatter,
         description="Contact mechanics with exact sensitivities: the Alart-Curnier augmented "
@@ -72,18 +74,34 @@ class _OnceFilter(logging.Filter):
 
 
 def main(argv=None) -> int:
-    # the console command's run counts from the process start (imports included); a
-    # run from Python (a sweep's point) from here
+    # the console command's run counts from the process start, the import of the
+    # command's module (and so of the library) as imports; a run from Python (a
+    # sweep's point) from here
+    if argv is None:
+        _import_command(sys.argv[1:2])
     with timing.recording(imports_from=timing.process_start() if argv is None else None,
                           fresh=True):
         return _main(sys.argv[1:] if argv is None else argv)
+
+
+def _import_command(first: list[str]) -> None:
+    """Import the module of the command named first on the command line, if any."""
+    name = registry.current_name(first[0])[0] if first else None
+    if name in registry.COMMANDS:
+        registry.command(name)
 
 
 def entry() -> None:
     """The ``signorini`` console command: :func:`main`, then a prompt exit. Every
     output is written and closed by then (a sweep's cluster too); the interpreter's
     teardown, which frees JAX's programs and arrays one by one, would only add a
-    few tenths of a second to the user's wait."""
+    few tenths of a second to the user's wait.
+
+    A command that draws figures gets its drawing helper first, before the
+    library (and JAX) is imported, so that matplotlib loads beside it."""
+    argv = sys.argv[1:]
+    if argv[:1] and argv[0] in registry.DRAWS_FIGURES and not {"-h", "--help"} & set(argv):
+        plots.start_helper()
     code = main()
     for stream in (sys.stdout, sys.stderr):
         try:
@@ -141,12 +159,16 @@ def _main(argv) -> int:
     logger = logging.getLogger("signorini")
     logger.addFilter(flt)
     try:
+        from .. import progress  # noqa: PLC0415  (lazy: after the figure helper started)
+
         with progress.bars(show), _signals():
             return registry.command(args.command).execute(args)
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM (_signals): keep what converged
         signum = getattr(e, "signum", signal.SIGINT)
         with _signals(final=128 + signum):
             print(file=sys.stderr)  # past a progress bar's line
+            from . import runner  # noqa: PLC0415  (lazy: the library, after the figure helper started)
+
             print(f"signorini: {runner.report_interrupt(signum)}", file=sys.stderr)
         return 128 + signum
     except ConvergenceError as e:

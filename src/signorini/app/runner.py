@@ -14,6 +14,7 @@ import numpy as np
 
 from .. import _programs, timing
 from ..post import files as io
+from ..post import plots
 from ..sensitivity import nonsmooth
 from ..errors import InputError
 from ..algorithms.stepping import last_started, solve
@@ -62,13 +63,16 @@ def write_summary(out: Path, summary: dict, solution) -> dict:
 
 def write_summary_json(out: Path, summary: dict) -> dict:
     """summary.json, with the run's time split (:mod:`signorini.timing`) if one is
-    kept, and what was wrong with the caches of compiled programs (if anything)."""
+    kept, and what was wrong with the caches of compiled programs (if anything).
+    The figures the run handed to the drawing helper are written first
+    (:func:`signorini.post.plots.finish`)."""
+    figures = plots.finish()
     if _programs.WARNINGS:
         said = list(summary.get("warnings", []))
         summary["warnings"] = said + [w for w in _programs.WARNINGS if w not in said]
     t = timing.current()
     if t is not None:
-        summary["timings"] = t.split()
+        summary["timings"] = {**t.split(), "figures": figures}
     io.write_json(out / "summary.json", summary)
     return summary
 

@@ -129,15 +129,14 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
               checks)
 
     timing.mark("output")
+    _figures(out, x, c, an, v, method, sensitivities)  # the helper draws them meanwhile
     _write_fields(out, sol, sensitivities, steps)
-
     ddm_fd = {}
     if fd_check:
         timing.mark("sensitivities")
         ddm_fd = _ddm_vs_fd(pb, sol, x < 0.9 * an["a"], sensitivities, steps=steps, options=options,
                             rel_step=fd_step, solver=solver, start=sol if coarse_start else None)
     timing.mark("output")
-    _figures(out, x, c, an, v, method, sensitivities)
     summary = summary_header("converged", sol)
     summary.update({
         "params": v,
