@@ -1,0 +1,215 @@
+"""Meshes of 3-D cells (8-node hexahedra or 4-node tetrahedra, one kind per
+mesh) with named node sets and boundary-face sets.
+
+Conventions: ``nodes`` (n_nodes, 3) reference coordinates; ``cells`` (n_cells, 8)
+or (n_cells, 4) in VTK/gmsh node order with a positive volume; a face set is
+(n_faces, 4) quadrilaterals or (n_faces, 3) triangles, each numbered
+counter-clockwise seen from outside the body, so that the outward normal
+follows by the right hand (the orientation of the face in the cell that owns it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError, InvertedElementError
+from .solid import CellType, cell_type
+
+
+@dataclass(frozen=True)
+class Mesh3D:
+    """A 3-D mesh of hexahedra or tetrahedra.
+
+    Attributes:
+        nodes: (n_nodes, 3) reference coordinates.
+        cells: (n_cells, 8) hexahedra or (n_cells, 4) tetrahedra.
+        node_sets: name -> sorted node indices.
+        face_sets: name -> (n_faces, 4 or 3) boundary faces, outward.
+    """
+
+    nodes: np.ndarray
+    cells: np.ndarray
+    node_sets: Mapping[str, np.ndarray] = field(default_factory=dict)
+    face_sets: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self):
+        nodes = np.asarray(self.nodes, dtype=float)
+        cells = np.asarray(self.cells)
+        if nodes.ndim != 2 or nodes.shape[1] != 3:
+            hint = (" (a 2-D mesh: use signorini.Mesh with PlaneStrain or Axisymmetric, or give "
+                    "three coordinates per node)" if nodes.ndim == 2 and nodes.shape[1] == 2 else "")
+            raise InputError(f"nodes of a 3-D mesh must have shape (n_nodes, 3), got "
+                             f"{nodes.shape}{hint}")
+        if cells.ndim != 2 or cells.shape[1] not in (8, 4):
+            raise InputError(f"cells of a 3-D mesh must be (n_cells, 8) hexahedra or (n_cells, 4) "
+                             f"tetrahedra, one kind per mesh; got shape {cells.shape}")
+        if len(cells) == 0:
+            raise InputError("the mesh has no cells; a body needs at least one cell")
+        if not np.issubdtype(cells.dtype, np.integer):
+            raise InputError(f"cells must be node indices (integers), got {cells.dtype}")
+        if cells.min() < 0 or cells.max() >= len(nodes):
+            raise InputError(f"cells refer to node indices outside 0..{len(nodes) - 1}")
+        if not np.all(np.isfinite(nodes)):
+            bad = int(np.nonzero(~np.all(np.isfinite(nodes), axis=1))[0][0])
+            raise InputError(f"node coordinates must be finite numbers: node {bad} is at "
+                             f"{nodes[bad].tolist()}")
+        cells = np.ascontiguousarray(cells, dtype=np.int64)
+        object.__setattr__(self, "nodes", np.ascontiguousarray(nodes))
+        object.__setattr__(self, "cells", cells)
+        ns = {}
+        for k, v in self.node_sets.items():
+            v = np.unique(np.asarray(v, dtype=np.int64))
+            if v.size and (v.min() < 0 or v.max() >= len(nodes)):
+                raise InputError(f"node set {k!r} refers to nodes outside 0..{len(nodes) - 1}")
+            ns[k] = v
+        object.__setattr__(self, "node_sets", ns)
+        check_cells(self.nodes, cells)
+        boundary = {_key(f): tuple(f) for f in self.boundary_faces()}
+        k_face = self.cell.faces.shape[1]
+        fs = {}
+        for k, v in self.face_sets.items():
+            a = np.asarray(v)
+            if a.ndim != 2 or a.shape[1] != k_face or (a.size and not np.issubdtype(a.dtype, np.integer)):
+                raise InputError(f"face set {k!r} must be an (n_faces, {k_face}) array of node "
+                                 f"indices for {self.cell.name} cells, got shape {a.shape}")
+            for f in a:
+                own = boundary.get(_key(f))
+                if own is None:
+                    raise InputError(f"face set {k!r}: face {f.tolist()} is not on the boundary "
+                                     "of the mesh; loads and contact need boundary faces")
+                if not _same_cycle(tuple(int(i) for i in f), own):
+                    raise InputError(f"face set {k!r}: face {f.tolist()} is numbered inward; "
+                                     "number boundary faces counter-clockwise seen from outside "
+                                     f"(e.g. {list(own)})")
+            fs[k] = a.astype(np.int64)
+        object.__setattr__(self, "face_sets", fs)
+
+    @property
+    def cell(self) -> CellType:
+        return cell_type(self.cells.shape[1])
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.cells)
+
+    def boundary_faces(self) -> np.ndarray:
+        """(n, k) faces that belong to exactly one cell, in that cell's (outward) numbering."""
+        f = self.cells[:, self.cell.faces].reshape(-1, self.cell.faces.shape[1])
+        _, inv, counts = np.unique(np.sort(f, axis=1), axis=0, return_inverse=True,
+                                   return_counts=True)
+        return f[counts[inv.ravel()] == 1]
+
+    def node_set(self, name: str) -> np.ndarray:
+        try:
+            return self.node_sets[name]
+        except KeyError:
+            raise InputError(f"unknown node set {name!r}; mesh has {sorted(self.node_sets)}") from None
+
+    def face_set(self, name: str) -> np.ndarray:
+        try:
+            return self.face_sets[name]
+        except KeyError:
+            raise InputError(f"unknown face set {name!r}; mesh has {sorted(self.face_sets)}") from None
+
+
+def _key(face) -> tuple:
+    return tuple(sorted(int(i) for i in face))
+
+
+def _same_cycle(a: tuple, b: tuple) -> bool:
+    """Whether ``a`` is ``b`` up to a cyclic shift (same orientation)."""
+    k = b.index(a[0]) if a[0] in b else -1
+    return k >= 0 and b[k:] + b[:k] == a
+
+
+def cell_jacobians(nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """det(dX/dxi) (n_cells, n_check) at the corners of each cell (hexahedra; the
+    trilinear map is one-to-one if these are positive for a cell with planar or
+    mildly warped faces) or its constant value (tetrahedra)."""
+    cell = cell_type(cells.shape[1])
+    X = nodes[cells]  # (c, n, 3)
+    dN = np.stack([cell.gradient(p) for p in cell.corners]) if cell.n_nodes == 8 else cell.dN
+    J = np.einsum("gai,caj->cgji", dN, X)
+    return np.linalg.det(J)
+
+
+def check_cells(nodes: np.ndarray, cells: np.ndarray, what: str = "mesh") -> None:
+    """Raise :class:`InvertedElementError` naming the first cell with a
+    non-positive Jacobian (inverted, degenerate or numbered the wrong way)."""
+    det = cell_jacobians(nodes, cells)
+    scale = np.ptp(nodes, axis=0).max() ** 3 or 1.0
+    bad = np.nonzero(det.min(axis=1) <= 1e-14 * scale)[0]
+    if bad.size:
+        c = int(bad[0])
+        raise InvertedElementError(
+            f"{what}: {bad.size} inverted or degenerate cell(s), first is cell {c} with nodes "
+            f"{cells[c].tolist()} at {nodes[cells[c]].round(6).tolist()} (Jacobians "
+            f"{det[c].round(8).tolist()}). Number the nodes of each "
+            f"{cell_type(cells.shape[1]).name} in VTK/gmsh order with a positive volume.")
+
+
+def box(xs, ys, zs) -> Mesh3D:
+    """Structured hexahedral mesh on the tensor grid ``xs`` x ``ys`` x ``zs``
+    (each increasing; graded grids from :func:`signorini.fem.mesh.graded_coordinates`).
+
+    Node and face sets: ``x0``, ``x1``, ``y0``, ``y1``, ``z0``, ``z1`` (the
+    faces at the smallest and largest x, y, z) and the node set ``all``.
+    """
+    grids = [np.asarray(g, dtype=float) for g in (xs, ys, zs)]
+    for name, g in zip("xyz", grids):
+        if g.ndim != 1 or len(g) < 2:
+            raise InputError(f"box needs at least two {name} coordinates")
+        if np.any(np.diff(g) <= 0):
+            raise InputError(f"box {name} coordinates must be strictly increasing")
+    nx, ny, nz = (len(g) for g in grids)
+    Z, Y, X = np.meshgrid(grids[2], grids[1], grids[0], indexing="ij")  # (nz, ny, nx)
+    nodes = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    idx = np.arange(nx * ny * nz).reshape(nz, ny, nx)
+    c = idx[:-1, :-1, :-1]
+    corners = [c, c + 1, c + 1 + nx, c + nx]
+    cells = np.stack(corners + [k + nx * ny for k in corners], axis=-1).reshape(-1, 8)
+    mesh = Mesh3D(nodes, cells)
+    faces = mesh.boundary_faces()
+    centre = nodes[faces].mean(axis=1)
+    lo, hi = nodes.min(axis=0), nodes.max(axis=0)
+    tol = 1e-9 * (hi - lo).max()
+    node_sets, face_sets = {"all": np.arange(len(nodes))}, {}
+    for d, name in enumerate("xyz"):
+        for side, value in (("0", lo[d]), ("1", hi[d])):
+            face_sets[name + side] = faces[np.abs(centre[:, d] - value) <= tol]
+            node_sets[name + side] = np.nonzero(np.abs(nodes[:, d] - value) <= tol)[0]
+    return Mesh3D(nodes, cells, node_sets, face_sets)
+
+
+#: each hexahedron as six tetrahedra around its diagonal 0-6 (VTK order): conforming
+#: between neighbours of a structured mesh, every tetrahedron of positive volume
+_HEX_TO_TETS = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6],
+                         [0, 5, 1, 6]])
+
+
+def tetrahedra(mesh: Mesh3D) -> Mesh3D:
+    """The hexahedral ``mesh`` with every cell split into six tetrahedra (same
+    nodes and node sets; each quadrilateral face set split into triangles)."""
+    if mesh.cells.shape[1] != 8:
+        raise InputError("tetrahedra() splits hexahedra; this mesh has tetrahedra already")
+    cells = mesh.cells[:, _HEX_TO_TETS].reshape(-1, 4)
+    tets = Mesh3D(mesh.nodes, cells)
+    tri = tets.boundary_faces()
+    by_key = {_key(f): f for f in tri}
+    face_sets = {}
+    for name, quads in mesh.face_sets.items():
+        out = []
+        for q in quads:
+            for f in ((q[0], q[1], q[2]), (q[0], q[2], q[3]), (q[1], q[2], q[3]), (q[0], q[1], q[3])):
+                t = by_key.get(_key(f))
+                if t is not None and set(int(i) for i in t) <= set(int(i) for i in q):
+                    out.append(t)
+        face_sets[name] = np.unique(np.array(out), axis=0)
+    return Mesh3D(mesh.nodes, cells, mesh.node_sets, face_sets)

@@ -1,0 +1,212 @@
+"""Three-dimensional elements: the 8-node hexahedron and the 4-node tetrahedron.
+
+A :class:`CellType` holds what depends on the reference cell only (corners,
+Gauss points and weights, shape functions and their parent gradients at the
+Gauss points and at the centroid, the faces). The element kernels below are
+written once for every cell type, formulation (:class:`~signorini.fem.element.Standard`
+or :class:`~signorini.fem.element.FBar`) and material
+(``update(H, h_n, mp) -> (P, h)``, :mod:`signorini.materials`), exactly as the
+2-D ones of :mod:`signorini.fem.element`, with the full 3x3 displacement
+gradient H_ij = u_ai dN_a/dX_j (docs/theory.md §12.1):
+
+    r_ai = sum_g w_g P_ij(Hbar_g, h_n,g) dN_a/dX_j            (standard)
+    K_aibk = sum_g w_g dN_a/dX_j C_ijkl dN_b/dX_l,  C = dP/dH
+
+with C from forward-mode autodiff at the material point (9 directions per
+Gauss point). F-bar (hexahedra only) differentiates the element residual, a
+VJP of u_e -> Hbar, forward in the 3 n_nodes nodal directions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._jax import jax, jnp
+from ..errors import InputError
+from .element import STANDARD, FBar
+
+_G = 1.0 / np.sqrt(3.0)
+
+
+@dataclass(frozen=True, eq=False)
+class CellType:
+    """A reference cell of a 3-D mesh.
+
+    Attributes:
+        name: the cell's name (as meshio and gmsh call it).
+        corners: (n_nodes, 3) parent coordinates of the nodes.
+        points: (n_gauss, 3) Gauss points; weights: (n_gauss,).
+        faces: (n_faces, k) local node indices of each face, numbered
+            counter-clockwise seen from outside (outward normal by the right hand).
+        fbar: whether the F-bar formulation applies (a cell with one Gauss point
+            has nothing to average).
+    """
+
+    name: str
+    corners: np.ndarray
+    points: np.ndarray
+    weights: np.ndarray
+    faces: np.ndarray
+    fbar: bool
+    shape: object = field(repr=False)  # xi (3,) -> N (n_nodes,), NumPy or JAX
+
+    def __post_init__(self):
+        N = np.stack([self.shape(p) for p in self.points])
+        dN = np.stack([self.gradient(p) for p in self.points])
+        c = self.corners.mean(axis=0)
+        object.__setattr__(self, "N", N)
+        object.__setattr__(self, "dN", dN)
+        object.__setattr__(self, "N0", self.shape(c)[None])
+        object.__setattr__(self, "dN0", self.gradient(c)[None])
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.corners)
+
+    @property
+    def n_gauss(self) -> int:
+        return len(self.points)
+
+    def gradient(self, xi) -> np.ndarray:
+        """dN/dxi (n_nodes, 3) at the parent point ``xi`` (exact: forward
+        differences of an affine-in-each-coordinate N are exact at unit step)."""
+        xi = np.asarray(xi, dtype=float)
+        return np.stack([self.shape(xi + e) - self.shape(xi) for e in np.eye(3)], axis=1)
+
+
+def _hex_shape(xi):
+    c = HEX_CORNERS
+    return 0.125 * (1 + c[:, 0] * xi[0]) * (1 + c[:, 1] * xi[1]) * (1 + c[:, 2] * xi[2])
+
+
+def _tet_shape(xi):
+    return np.array([1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]])
+
+
+HEX_CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                        [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
+
+#: trilinear hexahedron (VTK/gmsh node order), 2x2x2 Gauss points
+HEXAHEDRON = CellType(
+    name="hexahedron", corners=HEX_CORNERS,
+    points=_G * HEX_CORNERS, weights=np.ones(8),
+    faces=np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6],
+                    [3, 0, 4, 7]]),
+    fbar=True, shape=_hex_shape)
+
+#: linear tetrahedron (VTK/gmsh node order), one Gauss point (exact for its constant strain)
+TETRA = CellType(
+    name="tetra", corners=np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float),
+    points=np.full((1, 3), 0.25), weights=np.full(1, 1.0 / 6.0),
+    faces=np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]),
+    fbar=False, shape=_tet_shape)
+
+CELL_TYPES = {c.name: c for c in (HEXAHEDRON, TETRA)}
+
+
+def cell_type(n_nodes: int) -> CellType:
+    """The cell type with ``n_nodes`` nodes (8: hexahedron, 4: tetrahedron)."""
+    return {8: HEXAHEDRON, 4: TETRA}[n_nodes]
+
+
+def physical_gradients(dN, Xe):
+    """dN/dX (g, n, 3) and det(dX/dxi) (g,) from parent gradients dN (g, n, 3)."""
+    J = jnp.einsum("gai,aj->gji", dN, Xe)  # dX_j/dxi_i
+    detJ = jnp.linalg.det(J)
+    return jnp.einsum("gai,gij->gaj", dN, jnp.linalg.inv(J)), detJ
+
+
+def _points(Xe, cell: CellType):
+    dNdX, detJ = physical_gradients(cell.dN, Xe)
+    return dNdX, cell.weights * detJ
+
+
+def gauss_gradients(ue, Xe, cell: CellType, formulation=STANDARD):
+    """Displacement gradients (g, 3, 3) seen by the material (Hbar for F-bar)
+    and the volume weights (g,)."""
+    dNdX, w = _points(Xe, cell)
+    H = jnp.einsum("ai,gaj->gij", ue, dNdX)
+    if not formulation.linear:
+        dNdX0, _ = physical_gradients(cell.dN0, Xe)
+        H = formulation.modify(H, jnp.einsum("ai,aj->ij", ue, dNdX0[0]))
+    return H, w
+
+
+def _history(cell: CellType, hn):
+    return jnp.zeros((cell.n_gauss, 0)) if hn is None else hn
+
+
+def _check_formulation(cell: CellType, formulation) -> None:
+    if isinstance(formulation, FBar) and not cell.fbar:
+        raise InputError(f"the F-bar formulation needs cells with several Gauss points; "
+                         f"{cell.name} cells have one (use Standard(), or hexahedra)")
+
+
+def element_update(ue, Xe, material, mp, hn=None, cell: CellType = HEXAHEDRON,
+                   formulation=STANDARD):
+    """Internal forces (n_nodes, 3) and the updated Gauss-point history of one cell.
+
+    Args:
+        ue: (n_nodes, 3) nodal displacements. Xe: (n_nodes, 3) reference coordinates.
+        material: a material with ``update(H, h_n, mp)``. mp: its parameter values.
+        hn: (n_gauss, n_state) history at the end of the previous increment (None: none).
+    """
+    _check_formulation(cell, formulation)
+    hn = _history(cell, hn)
+    if formulation.linear:
+        dNdX, w = _points(Xe, cell)
+        H = jnp.einsum("ai,gaj->gij", ue, dNdX)
+        P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
+        return jnp.einsum("g,gij,gaj->ai", w, P, dNdX), h
+    w = gauss_gradients(ue, Xe, cell, formulation)[1]
+    H, vjp = jax.vjp(lambda u: gauss_gradients(u, Xe, cell, formulation)[0], ue)
+    P, h = jax.vmap(material.update, (0, 0, None))(H, hn, mp)
+    (r,) = vjp(w[:, None, None] * P)
+    return r, h
+
+
+def element_residual(ue, Xe, material, mp, hn=None, cell: CellType = HEXAHEDRON,
+                     formulation=STANDARD):
+    """Internal forces (n_nodes, 3) of one cell."""
+    return element_update(ue, Xe, material, mp, hn, cell, formulation)[0]
+
+
+def element_residual_tangent(ue, Xe, material, mp, hn=None, cell: CellType = HEXAHEDRON,
+                             formulation=STANDARD):
+    """Internal forces (3 n,), tangent (3 n, 3 n) (node-major DOFs) and the
+    updated history of one cell."""
+    _check_formulation(cell, formulation)
+    hn = _history(cell, hn)
+    n = cell.n_nodes
+    if formulation.linear:
+        dNdX, w = _points(Xe, cell)
+        H = jnp.einsum("ai,gaj->gij", ue, dNdX)
+
+        def stress(Hg, h_):
+            P, h = material.update(Hg, h_, mp)
+            return P, (P, h)
+
+        C, (P, h) = jax.vmap(jax.jacfwd(stress, has_aux=True))(H, hn)  # (g,3,3,3,3), (g,3,3)
+        r = jnp.einsum("g,gij,gaj->ai", w, P, dNdX)
+        K = jnp.einsum("g,gaj,gijkl,gbl->aibk", w, dNdX, C, dNdX)
+        return r.reshape(3 * n), K.reshape(3 * n, 3 * n), h
+
+    def residual(u):
+        r, h = element_update(u.reshape(n, 3), Xe, material, mp, hn, cell, formulation)
+        return r.reshape(3 * n), (r.reshape(3 * n), h)
+
+    K, (r, h) = jax.jacfwd(residual, has_aux=True)(ue.reshape(3 * n))
+    return r, K, h
+
+
+def element_stress(ue, Xe, material, mp, hn=None, cell: CellType = HEXAHEDRON,
+                   formulation=STANDARD):
+    """Cauchy stress (3, 3) averaged over the Gauss points of one cell."""
+    H, w = gauss_gradients(ue, Xe, cell, formulation)
+    if material.n_state:
+        sig = jax.vmap(lambda h, hs: material.cauchy(h, hs, mp))(H, _history(cell, hn))
+    else:
+        sig = jax.vmap(lambda h: material.cauchy(h, mp))(H)
+    return jnp.einsum("g,gij->ij", w, sig) / jnp.sum(w)
