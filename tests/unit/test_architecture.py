@@ -4,7 +4,7 @@ Every ``import`` of ``src/signorini`` (also inside functions) is an edge of a
 module graph. The graph has no circle; no module imports a higher layer; no
 function imports a module of the package (a circle hidden from the reader)
 except in the command's entry module, which imports the library only after
-starting the figure helper (marked ``lazy``), and a function imports a
+starting the output helper (marked ``lazy``), and a function imports a
 third-party module only where a comment says why (an optional or heavy
 dependency: ``optional`` or ``lazy``).
 """

@@ -22,7 +22,7 @@ import warnings
 from .. import timing
 from .._version import __version__
 from ..errors import ConvergenceError, Interrupted, SignoriniError, SignoriniWarning
-from ..post import plots
+from ..post import helper
 from . import registry
 
 
@@ -30,7 +30,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The parser of every command in :data:`signorini.app.registry.COMMANDS`, or of
     command ``only`` alone (what a run needs: the other commands' modules are not
     imported then)."""
-    from .options import UNITS, Formatter  # noqa: PLC0415  (lazy: the library, after the figure helper started)
+    from .options import UNITS, Formatter  # noqa: PLC0415  (lazy: the library, after the output helper started)
 
     parser = argparse.ArgumentParser(
         prog="signorini", formatter_class=Formatter,
@@ -97,11 +97,12 @@ def entry() -> None:
     teardown, which frees JAX's programs and arrays one by one, would only add a
     few tenths of a second to the user's wait.
 
-    A command that draws figures gets its drawing helper first, before the
-    library (and JAX) is imported, so that matplotlib loads beside it."""
+    A command that writes figures and VTU files gets its output helper first
+    (:mod:`signorini.post.helper`), before the library (and JAX) is imported,
+    so that matplotlib and meshio load beside it."""
     argv = sys.argv[1:]
-    if argv[:1] and argv[0] in registry.DRAWS_FIGURES and not {"-h", "--help"} & set(argv):
-        plots.start_helper()
+    if argv[:1] and argv[0] in registry.OUTPUT_HELPER and not {"-h", "--help"} & set(argv):
+        helper.start()
     code = main()
     for stream in (sys.stdout, sys.stderr):
         try:
@@ -159,7 +160,7 @@ def _main(argv) -> int:
     logger = logging.getLogger("signorini")
     logger.addFilter(flt)
     try:
-        from .. import progress  # noqa: PLC0415  (lazy: after the figure helper started)
+        from .. import progress  # noqa: PLC0415  (lazy: after the output helper started)
 
         with progress.bars(show), _signals():
             return registry.command(args.command).execute(args)
@@ -167,7 +168,7 @@ def _main(argv) -> int:
         signum = getattr(e, "signum", signal.SIGINT)
         with _signals(final=128 + signum):
             print(file=sys.stderr)  # past a progress bar's line
-            from . import runner  # noqa: PLC0415  (lazy: the library, after the figure helper started)
+            from . import runner  # noqa: PLC0415  (lazy: the library, after the output helper started)
 
             print(f"signorini: {runner.report_interrupt(signum)}", file=sys.stderr)
         return 128 + signum

@@ -23,9 +23,9 @@ COMMANDS = {
     "cache": "signorini.app.commands.cache",
 }
 
-#: the commands that draw figures (the ``signorini`` entry point starts their
-#: drawing helper before anything else: :func:`signorini.post.plots.start_helper`)
-DRAWS_FIGURES = ("hertz", "hertz-friction", "forging")
+#: the commands that write figures and VTU files (the ``signorini`` entry point
+#: starts their output helper before anything else: :func:`signorini.post.helper.start`)
+OUTPUT_HELPER = ("hertz", "hertz-friction", "forging")
 
 #: the commands a sweep can run at every point
 SWEEPABLE = tuple(n for n in COMMANDS if n not in ("sweep", "cache"))

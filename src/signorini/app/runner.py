@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import _programs, timing
 from ..post import files as io
-from ..post import plots
+from ..post import helper
 from ..sensitivity import nonsmooth
 from ..errors import InputError
 from ..algorithms.stepping import last_started, solve
@@ -64,15 +64,15 @@ def write_summary(out: Path, summary: dict, solution) -> dict:
 def write_summary_json(out: Path, summary: dict) -> dict:
     """summary.json, with the run's time split (:mod:`signorini.timing`) if one is
     kept, and what was wrong with the caches of compiled programs (if anything).
-    The figures the run handed to the drawing helper are written first
-    (:func:`signorini.post.plots.finish`)."""
-    figures = plots.finish()
+    The files the run handed to the output helper are written first
+    (:func:`signorini.post.helper.finish`)."""
+    written = helper.finish()
     if _programs.WARNINGS:
         said = list(summary.get("warnings", []))
         summary["warnings"] = said + [w for w in _programs.WARNINGS if w not in said]
     t = timing.current()
     if t is not None:
-        summary["timings"] = {**t.split(), "figures": figures}
+        summary["timings"] = {**t.split(), "output_helper": written}
     io.write_json(out / "summary.json", summary)
     return summary
 

@@ -8,10 +8,10 @@ import json
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-import meshio
 import numpy as np
 
 from ..contact.friction import STATUS_NAMES
+from . import helper
 from .atomic import atomic
 from ..errors import InputError
 
@@ -29,7 +29,9 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     switch points of the increment (docs/theory.md §11: point data ``switch`` 1
     weakly active, 2 stick/slip switch; cell data ``plastic_switch``) and, on
     the last increment, an adjoint shape gradient if one was attached
-    (``solution.shape_gradient``, (n_nodes, 2))."""
+    (``solution.shape_gradient``, (n_nodes, 2)). The fields are computed here;
+    the file is written by the output helper if one runs
+    (:mod:`signorini.post.helper`)."""
     path = Path(path)
     m = solution.model
     X = solution.reference()
@@ -78,10 +80,17 @@ def write_vtu(solution, path, i: int = -1) -> Path:
         cell["plastic_switch"] = [on]
     if getattr(solution, "shape_gradient", None) is not None and i in (-1, len(solution.increments) - 1):
         point["adjoint_shape_gradient"] = _vec3(solution.shape_gradient)
-    mesh = meshio.Mesh(_vec3(X), [("quad", m.conn)], point_data=point, cell_data=cell)
+    helper.run("vtu", path, _vec3(X), "quad", np.asarray(m.conn), point, cell)
+    return Path(path)
+
+
+def _write_vtu_arrays(path, points, cell_kind: str, cells, point_data: dict, cell_data: dict) -> None:
+    """Write a VTU file (atomically) of one cell block with its point and cell data."""
+    import meshio  # noqa: PLC0415  (lazy: heavy; the output helper has it loaded already)
+
+    mesh = meshio.Mesh(points, [(cell_kind, cells)], point_data=point_data, cell_data=cell_data)
     with atomic(path) as tmp:
         mesh.write(tmp)
-    return Path(path)
 
 
 def write_pvd(solution, path, increments=None) -> Path:

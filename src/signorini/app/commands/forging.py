@@ -134,13 +134,13 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     X = sol.reference()
     x = sol.current()
     vol0, vol1 = body_volume(model, X), body_volume(model, x)
-    _figures(out, sol, X, x, v, F, force)  # the helper draws them meanwhile
+    _figures(out, sol, X, x, v, F, force)  # the output helper draws them and writes the VTU
+    io.write_pvd(sol, out / "forging.pvd")  # files meanwhile, beside the check
 
     timing.mark("sensitivities")
     fd, rel = _table1(out, pb, F_fn, names, dF, fd_check, steps=steps, options=opts, solver=solver,
                       rel_step=fd_step)
     timing.mark("output")
-    io.write_pvd(sol, out / "forging.pvd")
 
     summary = summary_header("converged", sol)
     summary.update({

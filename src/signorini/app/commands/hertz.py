@@ -129,7 +129,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
               checks)
 
     timing.mark("output")
-    _figures(out, x, c, an, v, method, sensitivities)  # the helper draws them meanwhile
+    _figures(out, x, c, an, v, method, sensitivities)  # the output helper draws them meanwhile
     _write_fields(out, sol, sensitivities, steps)
     ddm_fd = {}
     if fd_check:
