@@ -1,0 +1,214 @@
+"""Rigid obstacles in three dimensions, and a user-defined surface in two or three.
+
+Each obstacle gives, for a point ``x`` and its resolved geometry ``geo =
+obstacle.geometry(params, t)``, the gap ``gap(x, geo)`` (>= 0: separated), the
+unit normal ``normal(x, geo)`` pointing from the obstacle into the body, and the
+closest point ``closest(x, geo)`` in the obstacle's own frame (relative to
+``geo["c"]``, the reference point that moves with the obstacle: a point carried
+along with the obstacle keeps its closest point, so it does not slip). All are
+pure JAX functions, differentiated by autodiff with respect to the point and
+to the obstacle's parameters (docs/theory.md §12.3). Every geometry carries
+``geo["shift"]``, the obstacle's translation since t = 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from .._jax import jax, jnp
+from ..errors import InputError
+from ..params import Spec, resolve
+
+
+def _vector(spec, params):
+    return jnp.stack([jnp.asarray(resolve(s, params), dtype=float) for s in spec])
+
+
+def _unit(v):
+    return v / jnp.sqrt(v @ v)
+
+
+def _nonzero(spec, params, what: str) -> None:
+    v = _vector(spec, params)
+    if not float(jnp.sqrt(v @ v)) > 0:
+        raise InputError(f"the {what} must be a non-zero vector, got {[float(a) for a in v]}")
+
+
+def _positive(spec, params, what: str) -> None:
+    r = float(resolve(spec, params))
+    if not r > 0:
+        raise InputError(f"the {what} must be positive, got {r}")
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Rigid plane through ``point`` (moving as ``point + t * motion``) with the
+    unit normal ``normal_vector`` (normalised on use) pointing into the body: a
+    flat die."""
+
+    point: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
+    normal_vector: tuple[Spec, Spec, Spec] = (0.0, 0.0, -1.0)
+    motion: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
+
+    def specs(self):
+        return (*self.point, *self.normal_vector, *self.motion)
+
+    def geometry(self, params, t):
+        shift = t * _vector(self.motion, params)
+        return {"c": _vector(self.point, params) + shift,
+                "n": _unit(_vector(self.normal_vector, params)), "shift": shift}
+
+    def check(self, params):
+        _nonzero(self.normal_vector, params, "plane's normal")
+
+    @staticmethod
+    def gap(x, geo):
+        return (x - geo["c"]) @ geo["n"]
+
+    @staticmethod
+    def normal(x, geo):
+        return geo["n"]
+
+    @classmethod
+    def closest(cls, x, geo):
+        return x - geo["c"] - cls.gap(x, geo) * geo["n"]
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Rigid sphere of radius ``radius`` centred at ``centre + t * motion``; the
+    body lies outside."""
+
+    radius: Spec = "R"
+    centre: tuple[Spec, Spec, Spec] = (0.0, 0.0, "R")
+    motion: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
+
+    def specs(self):
+        return (self.radius, *self.centre, *self.motion)
+
+    def geometry(self, params, t):
+        shift = t * _vector(self.motion, params)
+        return {"R": jnp.asarray(resolve(self.radius, params), dtype=float),
+                "c": _vector(self.centre, params) + shift, "shift": shift}
+
+    def check(self, params):
+        _positive(self.radius, params, "sphere's radius")
+
+    @staticmethod
+    def gap(x, geo):
+        d = x - geo["c"]
+        return jnp.sqrt(d @ d) - geo["R"]
+
+    @staticmethod
+    def normal(x, geo):
+        return _unit(x - geo["c"])
+
+    @classmethod
+    def closest(cls, x, geo):
+        return geo["R"] * cls.normal(x, geo)
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Rigid circular cylinder of radius ``radius`` around the axis through
+    ``centre + t * motion`` along ``axis`` (normalised on use); the body lies outside."""
+
+    radius: Spec = "R"
+    centre: tuple[Spec, Spec, Spec] = (0.0, 0.0, "R")
+    axis: tuple[Spec, Spec, Spec] = (0.0, 1.0, 0.0)
+    motion: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
+
+    def specs(self):
+        return (self.radius, *self.centre, *self.axis, *self.motion)
+
+    def geometry(self, params, t):
+        shift = t * _vector(self.motion, params)
+        return {"R": jnp.asarray(resolve(self.radius, params), dtype=float),
+                "c": _vector(self.centre, params) + shift, "a": _unit(_vector(self.axis, params)),
+                "shift": shift}
+
+    def check(self, params):
+        _positive(self.radius, params, "cylinder's radius")
+        _nonzero(self.axis, params, "cylinder's axis")
+
+    @staticmethod
+    def _radial(x, geo):
+        d = x - geo["c"]
+        return d - (d @ geo["a"]) * geo["a"], d @ geo["a"]
+
+    @classmethod
+    def gap(cls, x, geo):
+        r, _ = cls._radial(x, geo)
+        return jnp.sqrt(r @ r) - geo["R"]
+
+    @classmethod
+    def normal(cls, x, geo):
+        return _unit(cls._radial(x, geo)[0])
+
+    @classmethod
+    def closest(cls, x, geo):
+        r, along = cls._radial(x, geo)
+        return along * geo["a"] + geo["R"] * _unit(r)
+
+
+@dataclass(frozen=True)
+class Implicit:
+    """A rigid surface given by a signed distance ``distance(y, p)``: a JAX
+    function of the point ``y`` relative to the obstacle's reference point
+    (``origin + t * motion``) and of the dict ``p`` of the values of
+    ``parameters`` (name -> parameter spec), positive outside the obstacle (where
+    the body is). Works with two or three coordinates.
+
+    The gap is the function's value, the normal its normalised gradient
+    (autodiff), the closest point ``y - g n`` (exact when the function is a
+    distance; to first order in g otherwise). Example, a sphere of radius ``R``::
+
+        Implicit(lambda y, p: jnp.sqrt(y @ y) - p["R"], {"R": "R"}, origin=(0, 0, "R"))
+    """
+
+    distance: Callable
+    parameters: Mapping[str, Spec] = field(default_factory=dict)
+    origin: tuple = (0.0, 0.0, 0.0)
+    motion: tuple | None = None
+
+    def specs(self):
+        return (*self.parameters.values(), *self.origin, *(self.motion or ()))
+
+    def geometry(self, params, t):
+        origin = _vector(self.origin, params)
+        motion = jnp.zeros_like(origin) if self.motion is None else _vector(self.motion, params)
+        if motion.shape != origin.shape:
+            raise InputError(f"Implicit: origin and motion need the same number of coordinates, "
+                             f"got {origin.shape[0]} and {motion.shape[0]}")
+        shift = t * motion
+        p = {k: jnp.asarray(resolve(s, params), dtype=float) for k, s in self.parameters.items()}
+        return {"c": origin + shift, "p": p, "shift": shift}
+
+    def check(self, params):
+        geo = self.geometry(params, 0.0)
+        y = geo["c"] + 1.0
+        try:
+            g = self.distance(y, geo["p"])
+            if jnp.shape(g) != ():
+                raise InputError(f"Implicit: the distance function must return a scalar, got "
+                                 f"shape {jnp.shape(g)}")
+            n = jax.grad(self.distance)(y, geo["p"])
+        except InputError:
+            raise
+        except Exception as e:  # noqa: BLE001  (a user function: say which and why)
+            raise InputError(f"Implicit: the distance function cannot be evaluated at a point "
+                             f"with {geo['c'].shape[0]} coordinates and parameters "
+                             f"{sorted(geo['p'])}: {type(e).__name__}: {e}") from None
+        if not bool(jnp.all(jnp.isfinite(n))):
+            raise InputError("Implicit: the distance function's gradient is not finite at a test "
+                             "point; it must be differentiable (write it with jax.numpy)")
+
+    def gap(self, x, geo):
+        return self.distance(x - geo["c"], geo["p"])
+
+    def normal(self, x, geo):
+        return _unit(jax.grad(self.distance)(x - geo["c"], geo["p"]))
+
+    def closest(self, x, geo):
+        return x - geo["c"] - self.gap(x, geo) * self.normal(x, geo)
