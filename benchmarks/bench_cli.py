@@ -34,7 +34,8 @@ compilation cache and signorini's kept programs, see ``signorini/_jax.py`` and
   loaded; what is not kept is traced and read from JAX's cache).
 
 ``--signorini`` runs another installation or checkout (e.g. a script running
-``PYTHONPATH=OLD/src python3 -m signorini.app.cli "$@"``) for before/after tables.
+``PYTHONPATH=OLD/src python3 -m signorini.app.cli "$@"``) for before/after tables;
+``--commit`` names its commit in the CSV.
 
 Other caches are not controlled: Python's bytecode and the OS's file cache are
 warm after the first run of the benchmark.
@@ -271,16 +272,17 @@ def summarise(rows: list[dict], meta: dict) -> dict:
 
 # --------------------------------------------------------------------------- output
 
-def metadata(exe: str) -> dict:
+def metadata(exe: str, commit: str | None = None) -> dict:
     def git(*a):
         try:
             return subprocess.run(["git", *a], cwd=ROOT, capture_output=True, text=True,
                                   check=True).stdout.strip()
         except (OSError, subprocess.CalledProcessError):
             return ""
-    commit = git("rev-parse", "--short", "HEAD")
-    if commit and git("status", "--porcelain", "--untracked-files=no", "--", "src"):
-        commit += "+dirty"  # the measured code is not exactly the commit's
+    if commit is None:  # this checkout's code
+        commit = git("rev-parse", "--short", "HEAD")
+        if commit and git("status", "--porcelain", "--untracked-files=no", "--", "src"):
+            commit += "+dirty"  # the measured code is not exactly the commit's
 
     def version(pkg):
         try:
@@ -338,6 +340,9 @@ def main():
                     help="seconds before a run is killed and recorded as failed (0: none; default 3600)")
     ap.add_argument("--signorini", default=shutil.which("signorini"),
                     help="the executable (default: signorini on PATH, %(default)s)")
+    ap.add_argument("--commit", default=None,
+                    help="the commit of the code --signorini runs, for the CSV (default: this "
+                         "checkout's HEAD, +dirty with uncommitted changes in src/)")
     args = ap.parse_args()
     if args.quick:
         args.runs, args.commands = 1, "hertz"
@@ -349,7 +354,7 @@ def main():
     if bad or args.runs < 1:
         ap.error(f"unknown command/cache state {bad} (commands: {names}; caches: {list(CACHES)})"
                  if bad else "--runs must be >= 1")
-    meta = metadata(args.signorini)
+    meta = metadata(args.signorini, args.commit)
 
     def log(msg):
         print(msg, flush=True)
