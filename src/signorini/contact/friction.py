@@ -112,6 +112,10 @@ class Coulomb(ContactLawDefaults):
                              "call Model.residual with state_n = model.initial_state(...) or later")
         return hist[0], hist[1], (hist[2] if len(hist) > 2 else None)
 
+    def _flags(self, hist):
+        """The case flags the model passed in ``hist``, or None."""
+        return self._hist(hist)[2]
+
     def augmented(self, x, lam, geo, obstacle, cp, s_n):
         """(lam^_N, lam^_T, g_N, g_T) of one node."""
         g_n = obstacle.gap(x, geo)
@@ -155,7 +159,7 @@ class Coulomb(ContactLawDefaults):
         multiplier rows of a node (a mix of stick and slip would leave the
         lam_T column empty); the tie band of :meth:`cases` makes them the same
         in every compiled program."""
-        case = self._hist(hist)[2]
+        case = self._flags(hist)
         if case is None:
             case = self.cases(x, lam, geo, obstacle, cp, hist)
         lhn = lam[0] + cp["eps_n"] * obstacle.gap(x, geo)

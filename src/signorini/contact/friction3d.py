@@ -98,16 +98,8 @@ class CoulombDisc(Coulomb):
         l_fixed = -(lam[1:] @ lam[1:]) / (2.0 * cp["eps_t"])
         return A * (l_n + jnp.where(tangential > 0, l_t, l_fixed))
 
-    def residual(self, x, lam, A, geo, obstacle, cp, hist):
-        """(6,): contact force on x_S (3), then R_lamN, R_lamT (2)."""
-        case = self._hist(hist)[3]
-        if case is None:
-            case = self.cases(x, lam, geo, obstacle, cp, hist)
-        lhn = lam[0] + cp["eps_n"] * obstacle.gap(x, geo)
-        rho = -cp["mu"] * jnp.where(case[0], lhn, 0.0)
-        fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp, hist,
-                                                           rho, case)
-        return jnp.concatenate([fx, fl])
+    def _flags(self, hist):
+        return self._hist(hist)[3]
 
     def tractions(self, x, lam, A, geo, obstacle, cp):
         """(p_N, p_T (2,)): pressure and tangential traction on the body in the

@@ -327,8 +327,14 @@ def element_stress(ue, Xe, material, mp, hn=None, kinematics=PLANE_STRAIN, formu
     """Cauchy stress (3, 3) averaged over the Gauss points of one element (with
     history: the stress of the update from h_n, i.e. at the end of the increment)."""
     H, w = gauss_gradients(ue, Xe, kinematics, formulation)
+    return average_cauchy(material, mp, H, w, _history(material, hn))
+
+
+def average_cauchy(material, mp, H, w, hn):
+    """The Cauchy stress (3, 3) of the material at the points' gradients H (g, 3, 3)
+    and histories hn (g, n_state), averaged with the weights w (g,)."""
     if material.n_state:
-        sig = jax.vmap(lambda h, hs: material.cauchy(h, hs, mp))(H, _history(material, hn))
+        sig = jax.vmap(lambda h, hs: material.cauchy(h, hs, mp))(H, hn)
     else:
         sig = jax.vmap(lambda h: material.cauchy(h, mp))(H)
     return jnp.einsum("g,gij->ij", w, sig) / jnp.sum(w)

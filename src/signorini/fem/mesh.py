@@ -17,8 +17,23 @@ import numpy as np
 from ..errors import InputError, InvertedElementError
 
 
+class Cells:
+    """What every mesh has: ``nodes``, ``cells`` and named ``node_sets``."""
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.cells)
+
+    def node_set(self, name: str) -> np.ndarray:
+        return named(self.node_sets, "node", name)
+
+
 @dataclass(frozen=True)
-class Mesh:
+class Mesh(Cells):
     """A 2-D mesh of Q4 cells.
 
     Attributes:
@@ -81,14 +96,6 @@ class Mesh:
                         "mesh; loads and contact need boundary edges"
                     )
 
-    @property
-    def n_nodes(self) -> int:
-        return len(self.nodes)
-
-    @property
-    def n_cells(self) -> int:
-        return len(self.cells)
-
     def boundary_edges(self) -> np.ndarray:
         """(n, 2) edges that belong to exactly one cell, in that cell's orientation."""
         e = np.stack([self.cells, np.roll(self.cells, -1, axis=1)], axis=-1).reshape(-1, 2)
@@ -96,21 +103,20 @@ class Mesh:
         _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
         return e[counts[inv.ravel()] == 1]
 
-    def node_set(self, name: str) -> np.ndarray:
-        try:
-            return self.node_sets[name]
-        except KeyError:
-            raise InputError(f"unknown node set {name!r}; mesh has {sorted(self.node_sets)}") from None
-
     def edge_set(self, name: str) -> np.ndarray:
-        try:
-            return self.edge_sets[name]
-        except KeyError:
-            raise InputError(f"unknown edge set {name!r}; mesh has {sorted(self.edge_sets)}") from None
+        return named(self.edge_sets, "edge", name)
 
     def min_edge_length(self, name: str) -> float:
         e = self.edge_set(name)
         return float(np.linalg.norm(self.nodes[e[:, 1]] - self.nodes[e[:, 0]], axis=1).min())
+
+
+def named(sets: Mapping, kind: str, name: str) -> np.ndarray:
+    """``sets[name]``, or an InputError listing the mesh's sets of that kind."""
+    try:
+        return sets[name]
+    except KeyError:
+        raise InputError(f"unknown {kind} set {name!r}; mesh has {sorted(sets)}") from None
 
 
 def signed_jacobians(nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:

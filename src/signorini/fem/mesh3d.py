@@ -16,11 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError, InvertedElementError
+from .mesh import Cells, named
 from .solid import CellType, cell_type
 
 
 @dataclass(frozen=True)
-class Mesh3D:
+class Mesh3D(Cells):
     """A 3-D mesh of hexahedra or tetrahedra.
 
     Attributes:
@@ -91,14 +92,6 @@ class Mesh3D:
     def cell(self) -> CellType:
         return cell_type(self.cells.shape[1])
 
-    @property
-    def n_nodes(self) -> int:
-        return len(self.nodes)
-
-    @property
-    def n_cells(self) -> int:
-        return len(self.cells)
-
     def boundary_faces(self) -> np.ndarray:
         """(n, k) faces that belong to exactly one cell, in that cell's (outward) numbering."""
         f = self.cells[:, self.cell.faces].reshape(-1, self.cell.faces.shape[1])
@@ -106,17 +99,8 @@ class Mesh3D:
                                    return_counts=True)
         return f[counts[inv.ravel()] == 1]
 
-    def node_set(self, name: str) -> np.ndarray:
-        try:
-            return self.node_sets[name]
-        except KeyError:
-            raise InputError(f"unknown node set {name!r}; mesh has {sorted(self.node_sets)}") from None
-
     def face_set(self, name: str) -> np.ndarray:
-        try:
-            return self.face_sets[name]
-        except KeyError:
-            raise InputError(f"unknown face set {name!r}; mesh has {sorted(self.face_sets)}") from None
+        return named(self.face_sets, "face", name)
 
 
 def _key(face) -> tuple:

@@ -25,7 +25,7 @@ import numpy as np
 
 from .._jax import jax, jnp
 from ..errors import InputError
-from .element import STANDARD, FBar
+from .element import STANDARD, FBar, average_cauchy
 
 _G = 1.0 / np.sqrt(3.0)
 
@@ -205,8 +205,4 @@ def element_stress(ue, Xe, material, mp, hn=None, cell: CellType = HEXAHEDRON,
                    formulation=STANDARD):
     """Cauchy stress (3, 3) averaged over the Gauss points of one cell."""
     H, w = gauss_gradients(ue, Xe, cell, formulation)
-    if material.n_state:
-        sig = jax.vmap(lambda h, hs: material.cauchy(h, hs, mp))(H, _history(cell, hn))
-    else:
-        sig = jax.vmap(lambda h: material.cauchy(h, mp))(H)
-    return jnp.einsum("g,gij->ij", w, sig) / jnp.sum(w)
+    return average_cauchy(material, mp, H, w, _history(cell, hn))
