@@ -131,3 +131,66 @@ def test_read_drops_orphan_nodes_and_merges_group_blocks(tmp_path):
     mesh.write(tmp_path / "arc.msh", file_format="gmsh22", binary=False)
     with pytest.raises(sg.InputError, match="edge set 'spoke' has nodes that belong to no quadrilateral"):
         read_mesh(tmp_path / "arc.msh")
+
+
+# ------------------------------------------------------------------ 3-D meshes
+def _write_gmsh_3d(path, tets=False, flip=False, inner_face=False):
+    from signorini.fem.mesh3d import box, tetrahedra
+
+    m = box(np.linspace(0, 2, 4), np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+    if tets:
+        m = tetrahedra(m)
+    face = "triangle" if tets else "quad"
+    vol = "tetra" if tets else "hexahedron"
+    cells = m.cells[:, [0, 2, 1, 3]] if (flip and tets) else (
+        m.cells[:, [4, 5, 6, 7, 0, 1, 2, 3]] if flip else m.cells)
+    top = m.face_sets["z1"][:, ::-1]  # written inward on purpose
+    faces = np.vstack([top, m.face_sets["x0"]])
+    tags = np.r_[np.full(len(top), 2), np.full(len(m.face_sets["x0"]), 3)]
+    if inner_face:
+        c = m.cells[0]
+        faces = np.vstack([faces, c[[1, 2, 6, 5]] if not tets else [[c[0], c[2], c[3]]]])
+        tags = np.r_[tags, 3]
+    extra = np.array([[0, 1, 2, 3, 4, 5, 6, 7]]) if False else None  # noqa: F841
+    mesh = meshio.Mesh(m.nodes, [(vol, cells), (face, faces)],
+                       cell_data={"gmsh:physical": [np.ones(len(cells), int), tags],
+                                  "gmsh:geometrical": [np.ones(len(cells), int), tags]},
+                       field_data={"part": np.array([1, 3]), "top": np.array([2, 2]),
+                                   "left": np.array([3, 2])})
+    mesh.write(path, file_format="gmsh22", binary=False)
+    return m
+
+
+@pytest.mark.parametrize("tets", [False, True])
+@pytest.mark.parametrize("flip", [False, True])
+def test_read_gmsh_3d_with_face_sets(tmp_path, tets, flip):
+    """Hexahedra or tetrahedra (cells of negative volume renumbered), physical
+    surfaces as outward face sets and node sets, the volume group as a node set."""
+    from signorini.fem.mesh3d import Mesh3D, cell_jacobians
+
+    ref = _write_gmsh_3d(tmp_path / "m.msh", tets=tets, flip=flip)
+    m = read_mesh(tmp_path / "m.msh")
+    assert isinstance(m, Mesh3D) and m.n_cells == ref.n_cells and np.allclose(m.nodes, ref.nodes)
+    assert (cell_jacobians(m.nodes, m.cells) > 0).all()
+    key = lambda faces: {tuple(np.roll(f, -int(np.argmin(f)))) for f in faces}
+    assert key(m.face_set("top")) == key(ref.face_set("z1"))  # outward, as the cells own them
+    assert key(m.face_set("left")) == key(ref.face_set("x0"))
+    assert set(m.node_set("top")) == set(ref.node_set("z1"))
+    assert len(m.node_set("part")) == m.n_nodes
+
+
+def test_read_gmsh_3d_errors(tmp_path):
+    _write_gmsh_3d(tmp_path / "bad.msh", inner_face=True)
+    with pytest.raises(sg.InputError, match="face set 'left'.*not on the boundary"):
+        read_mesh(tmp_path / "bad.msh")
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
+    meshio.Mesh(np.vstack([pts, pts + 2, [[4, 4, 4.0]] * 3]),
+                [("tetra", np.array([[0, 1, 2, 3]])),
+                 ("hexahedron", np.array([[5, 6, 7, 8, 9, 10, 11, 12]]))]
+                ).write(tmp_path / "mixed.msh", file_format="gmsh22", binary=False)
+    with pytest.raises(sg.InputError, match="mixes hexahedron and tetra"):
+        read_mesh(tmp_path / "mixed.msh")
+    meshio.Mesh(pts, [("tetra", np.array([[0, 1, 2, 3]])), ("wedge", np.array([[0, 1, 2, 3, 4, 1]]))]
+                ).write(tmp_path / "wedge.msh", file_format="gmsh22", binary=False)
+    with pytest.raises(sg.InputError, match=r"unsupported cell types \['wedge'\]"):
+        read_mesh(tmp_path / "wedge.msh")

@@ -1,5 +1,7 @@
 """Reading meshes: gmsh ``.msh`` and the other formats meshio knows, into a
-:class:`~signorini.fem.mesh.Mesh` with named edge and node sets."""
+:class:`~signorini.fem.mesh.Mesh` with named edge and node sets, or, for a file
+of hexahedra or tetrahedra, a :class:`~signorini.fem.mesh3d.Mesh3D` with named
+face and node sets."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import numpy as np
 
 from ..errors import InputError, SignoriniWarning
 from .mesh import Mesh, signed_jacobians
+from .mesh3d import Mesh3D, cell_jacobians
 
 log = logging.getLogger("signorini")
 
@@ -79,8 +82,9 @@ def _meshio_read(path: Path):
                      f"is a complete mesh in the format of its extension. {_MESH_HINT}")
 
 
-def read_mesh(path) -> "Mesh":
-    """Read a Q4 mesh (gmsh .msh or any meshio format) with named sets.
+def read_mesh(path) -> "Mesh | Mesh3D":
+    """Read a Q4 mesh (gmsh .msh or any meshio format) with named sets; a file of
+    hexahedra or tetrahedra gives a 3-D mesh (:func:`read_mesh_3d`).
 
     Quadrilateral cells become the mesh; every named physical group of line
     elements (gmsh ``$PhysicalNames``) becomes an edge set (oriented
@@ -99,6 +103,8 @@ def read_mesh(path) -> "Mesh":
 
     path = Path(path)
     m = _meshio_read(path)
+    if {c.type for c in m.cells} & set(_VOLUME):
+        return _mesh_3d(path, m)
     nodes, cells, used, new = _quad_mesh(path, m)
     names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
     phys = m.cell_data.get("gmsh:physical")
@@ -189,3 +195,92 @@ def _add_set(path, name, kind, data, used, new, nodes, boundary, edge_sets, node
         node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
     elif kind == "vertex":
         node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
+
+
+#: the 3-D cells read, and the face cells that name their boundary sets
+_VOLUME = {"hexahedron": "quad", "tetra": "triangle"}
+#: a node order of the same cell with the opposite orientation
+_MIRROR = {"hexahedron": [4, 5, 6, 7, 0, 1, 2, 3], "tetra": [0, 2, 1, 3]}
+
+
+def read_mesh_3d(path) -> Mesh3D:
+    """Read a mesh of 8-node hexahedra or 4-node tetrahedra (gmsh .msh or any
+    meshio format) with named sets.
+
+    The volume cells become the mesh (one kind per file; cells of negative volume
+    are renumbered); every named physical group of faces (quadrilaterals for
+    hexahedra, triangles for tetrahedra) becomes a face set, numbered outward as
+    in the cell that owns each face, and a node set of the same name; named
+    groups of volumes, lines and points become node sets. Nodes that belong to no
+    cell are dropped and the rest renumbered in file order.
+
+    Raises:
+        InputError: as :func:`read_mesh`; also for mixed or unsupported cells and
+            a face group off the boundary. The message names the file and the set.
+    """
+    path = Path(path)
+    return _mesh_3d(path, _meshio_read(path))
+
+
+def _mesh_3d(path, m) -> Mesh3D:
+    types = {c.type for c in m.cells}
+    kinds = sorted(types & set(_VOLUME))
+    if len(kinds) > 1:
+        raise InputError(f"{path}: the mesh mixes {' and '.join(kinds)}; signorini takes one kind "
+                         "of cell per mesh (in gmsh: mesh the volume with one algorithm, e.g. "
+                         "all tetrahedra, or recombine every volume into hexahedra)")
+    kind = kinds[0]
+    face = _VOLUME[kind]
+    other = sorted(types - {kind, face, "line", "vertex"})
+    if other:
+        raise InputError(f"{path}: unsupported cell types {other} beside {kind}; signorini reads "
+                         f"8-node hexahedra or 4-node tetrahedra with {face} face sets (second-order "
+                         "cells: mesh with order 1)")
+    points = np.asarray(m.points, dtype=float)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise InputError(f"{path}: points have shape {points.shape}; a 3-D mesh needs x, y, z")
+    cells = np.concatenate([c.data for c in m.cells if c.type == kind]).astype(np.int64)
+    used = np.zeros(len(points), bool)
+    used[cells.ravel()] = True
+    new = -np.ones(len(points), np.int64)
+    new[used] = np.arange(used.sum())
+    nodes = points[used]
+    cells = new[cells]
+    flip = cell_jacobians(nodes, cells).sum(axis=1) < 0
+    cells[flip] = cells[flip][:, _MIRROR[kind]]
+    try:
+        probe = Mesh3D(nodes, cells)
+    except InputError as e:
+        raise type(e)(f"{path}: {e}") from None
+    boundary = {tuple(sorted(int(i) for i in f)): f for f in probe.boundary_faces()}
+    names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
+    phys = m.cell_data.get("gmsh:physical")
+    face_sets, node_sets = {}, {}
+    for block, tags in zip(m.cells, phys if phys is not None else []):
+        for tag in np.unique(tags):
+            name = names.get(int(tag), f"physical_{int(tag)}")
+            data = block.data[tags == tag]
+            if (~used[data]).any():
+                if block.type == "vertex":
+                    data = data[used[data]]
+                else:
+                    raise InputError(f"{path}: set {name!r} has nodes that belong to no {kind}; put "
+                                     "the group on the meshed body")
+            data = new[data]
+            if block.type == face:
+                faces = []
+                for f in data:
+                    own = boundary.get(tuple(sorted(int(i) for i in f)))
+                    if own is None:
+                        raise InputError(f"{path}: face set {name!r} has the face at "
+                                         f"{nodes[f].round(6).tolist()} that is not on the boundary "
+                                         f"of the {kind} mesh; loads and contact need boundary faces")
+                    faces.append(own)
+                face_sets[name] = np.concatenate(
+                    [face_sets.get(name, np.empty((0, len(f)), np.int64)), np.asarray(faces)])
+            node_sets[name] = np.union1d(node_sets.get(name, []), data.ravel()).astype(np.int64)
+    node_sets.setdefault("all", np.arange(len(nodes)))
+    try:
+        return Mesh3D(nodes, cells, node_sets, face_sets)
+    except InputError as e:
+        raise type(e)(f"{path}: {e}") from None
