@@ -98,7 +98,7 @@ class Solution:
 
     def displacement(self, i: int = -1) -> np.ndarray:
         """(n_nodes, 2) nodal displacements."""
-        return self._inc(i).w[: 2 * self.model.n_nodes].reshape(-1, 2)
+        return self._inc(i).w[: self.model.dim * self.model.n_nodes].reshape(-1, self.model.dim)
 
     def reference(self) -> np.ndarray:
         """(n_nodes, 2) reference coordinates X(phi)."""
@@ -116,10 +116,11 @@ class Solution:
         return w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
 
     def reactions(self, i: int = -1) -> np.ndarray:
-        """(n_nodes, 2) reaction forces of the supports on the body (0 where free)."""
-        r = np.zeros(2 * self.model.n_nodes)
+        """(n_nodes, dim) reaction forces of the supports on the body (0 where free)."""
+        d = self.model.dim
+        r = np.zeros(d * self.model.n_nodes)
         r[self.model.prescribed] = self._inc(i).reactions  # R_p = f_int - f_ext = r
-        return r.reshape(-1, 2)
+        return r.reshape(-1, d)
 
     def reaction_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
         """(n_nodes, 2) DDM sensitivity of :meth:`reactions` (0 where free).
@@ -128,7 +129,7 @@ class Solution:
         increment, so its tangent D state_n / D phi enters the JVP (docs/theory.md §1)."""
         self._check_name(name)
         m = self.model
-        r = np.zeros(2 * m.n_nodes)
+        r = np.zeros(m.dim * m.n_nodes)
         if m.has_history:
             inc = self._inc(i)
             state = self.state_before(i)[0]
@@ -136,10 +137,10 @@ class Solution:
             d = self.history_response(lambda w, p, t, st: m.residual(w, p, t, st, cases)[m.prescribed],
                                       i)[1][name]
             r[m.prescribed] = np.asarray(d)
-            return r.reshape(-1, 2)
+            return r.reshape(-1, m.dim)
         _, d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))
         r[m.prescribed] = d[name]
-        return r.reshape(-1, 2)
+        return r.reshape(-1, m.dim)
 
     def state_before(self, i: int = -1):
         """(state_n, its sensitivities) at the start of increment i (path-dependent
@@ -191,7 +192,8 @@ class Solution:
 
     def displacement_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
         """(n_nodes, 2) Du/Dphi."""
-        return self.w_sensitivity(name, i)[: 2 * self.model.n_nodes].reshape(-1, 2)
+        d = self.model.dim
+        return self.w_sensitivity(name, i)[: d * self.model.n_nodes].reshape(-1, d)
 
     def multiplier_sensitivity(self, name: str, i: int = -1, surface: int = 0) -> np.ndarray:
         """(nc, m) DDM sensitivity of :meth:`multipliers`."""

@@ -14,6 +14,7 @@ import numpy as np
 from .._jax import jnp
 from ..errors import InputError
 from ..fem.kinematics import PLANE_STRAIN
+from ..fem.solid import face_areas  # noqa: F401  (the 3-D areas: with the 3-D cells)
 
 
 def contact_nodes(edges: np.ndarray) -> np.ndarray:
@@ -55,6 +56,18 @@ def nodal_normals(X, edges: np.ndarray, nodes: np.ndarray):
     nodes: normalised sum of the adjacent edge normals (dy, -dx)."""
     pos = np.searchsorted(nodes, edges)
     xp = np if isinstance(X, np.ndarray) else jnp  # a fixed mesh: NumPy, no eager JAX op
+    if X.shape[1] == 3:  # faces: the area-weighted normals of the faces at each node
+        Xf = X[edges]
+        n = xp.cross(Xf[:, 2] - Xf[:, 0], Xf[:, -1] - Xf[:, 1]) if edges.shape[1] == 4 else \
+            xp.cross(Xf[:, 1] - Xf[:, 0], Xf[:, 2] - Xf[:, 0])
+        n = xp.repeat(n[:, None, :], edges.shape[1], axis=1).reshape(-1, 3)
+        flat = pos.ravel()
+        if xp is np:
+            N = np.zeros((len(nodes), 3))
+            np.add.at(N, flat, n)
+        else:
+            N = jnp.zeros((len(nodes), 3)).at[flat].add(n)
+        return N / xp.linalg.norm(N, axis=1, keepdims=True)
     d = X[edges[:, 1]] - X[edges[:, 0]]
     n = xp.stack([d[:, 1], -d[:, 0]], axis=1)
     if xp is np:
@@ -65,47 +78,3 @@ def nodal_normals(X, edges: np.ndarray, nodes: np.ndarray):
         N = jnp.zeros((len(nodes), 2)).at[pos[:, 0]].add(n).at[pos[:, 1]].add(n)
     return N / xp.linalg.norm(N, axis=1, keepdims=True)
 
-
-_G = 1.0 / np.sqrt(3.0)
-#: 2x2 Gauss points of the parent square and the bilinear shape functions and
-#: parent gradients of a quadrilateral face there
-_QUAD_XI = np.array([[-_G, -_G], [_G, -_G], [_G, _G], [-_G, _G]])
-_QUAD_C = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-_QUAD_N = 0.25 * (1 + _QUAD_XI[:, None, 0] * _QUAD_C[None, :, 0]) * (1 + _QUAD_XI[:, None, 1] * _QUAD_C[None, :, 1])
-_QUAD_DN = 0.25 * np.stack([_QUAD_C[None, :, 0] * (1 + _QUAD_XI[:, None, 1] * _QUAD_C[None, :, 1]),
-                            _QUAD_C[None, :, 1] * (1 + _QUAD_XI[:, None, 0] * _QUAD_C[None, :, 0])],
-                           axis=-1)  # (gauss, node, 2)
-
-
-def face_areas(X, faces: np.ndarray, nodes: np.ndarray | None = None):
-    """A_S (n_contact,) = sum over the faces f of the set of int_f N_S dA, on the
-    reference surface (docs/theory.md §12.5): a third of each triangle's area, or
-    the 2x2 Gauss rule on each bilinear quadrilateral. They add up to the area
-    of the surface.
-
-    Args:
-        X: (n_nodes, 3) reference coordinates (JAX or NumPy, may depend on phi).
-        faces: (n_faces, 3) triangles or (n_faces, 4) quadrilaterals.
-        nodes: (n_contact,) sorted nodes of the faces (default: all of them).
-    """
-    faces = np.asarray(faces)
-    if nodes is None:
-        nodes = np.unique(faces.ravel())
-    xp = np if isinstance(X, np.ndarray) else jnp
-    Xf = X[faces]  # (f, k, 3)
-    if faces.shape[1] == 3:
-        a = 0.5 * xp.linalg.norm(xp.cross(Xf[:, 1] - Xf[:, 0], Xf[:, 2] - Xf[:, 0]), axis=1)
-        per_node = xp.repeat(a[:, None] / 3.0, 3, axis=1)
-    elif faces.shape[1] == 4:
-        J = xp.einsum("gak,fai->fgki", _QUAD_DN, Xf)  # (f, g, 2, 3): dX/dxi, dX/deta
-        dA = xp.linalg.norm(xp.cross(J[:, :, 0], J[:, :, 1]), axis=-1)  # (f, g)
-        per_node = xp.einsum("fg,ga->fa", dA, _QUAD_N)
-    else:
-        raise InputError(f"contact faces must be triangles or quadrilaterals, got {faces.shape[1]} "
-                         "nodes per face")
-    pos = np.searchsorted(nodes, faces)
-    if xp is np:
-        out = np.zeros(len(nodes))
-        np.add.at(out, pos.ravel(), per_node.ravel())
-        return out
-    return jnp.zeros(len(nodes)).at[pos.ravel()].add(per_node.ravel())

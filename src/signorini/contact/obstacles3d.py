@@ -41,8 +41,21 @@ def _positive(spec, params, what: str) -> None:
         raise InputError(f"the {what} must be positive, got {r}")
 
 
+class _Surface:
+    """What every obstacle of this module derives from its ``closest`` point."""
+
+    def project(self, x, geo):
+        """The closest point of the obstacle, in the global frame."""
+        return geo["c"] + self.closest(x, geo)
+
+    def coordinate(self, x, geo):
+        raise InputError(f"{type(self).__name__} has no slip coordinate along a line (the 2-D "
+                         "friction law's history); friction on it is the Coulomb-disc law "
+                         "(signorini.contact.friction3d.CoulombDisc)")
+
+
 @dataclass(frozen=True)
-class Plane:
+class Plane(_Surface):
     """Rigid plane through ``point`` (moving as ``point + t * motion``) with the
     unit normal ``normal_vector`` (normalised on use) pointing into the body: a
     flat die."""
@@ -76,7 +89,7 @@ class Plane:
 
 
 @dataclass(frozen=True)
-class Sphere:
+class Sphere(_Surface):
     """Rigid sphere of radius ``radius`` centred at ``centre + t * motion``; the
     body lies outside."""
 
@@ -110,7 +123,7 @@ class Sphere:
 
 
 @dataclass(frozen=True)
-class Cylinder:
+class Cylinder(_Surface):
     """Rigid circular cylinder of radius ``radius`` around the axis through
     ``centre + t * motion`` along ``axis`` (normalised on use); the body lies outside."""
 
@@ -153,7 +166,7 @@ class Cylinder:
 
 
 @dataclass(frozen=True)
-class Implicit:
+class Implicit(_Surface):
     """A rigid surface given by a signed distance ``distance(y, p)``: a JAX
     function of the point ``y`` relative to the obstacle's reference point
     (``origin + t * motion``) and of the dict ``p`` of the values of

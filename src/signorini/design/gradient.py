@@ -292,7 +292,7 @@ def adjoint_gradient(solution, response, names: Sequence[str], *, increments="la
     adj = m.cache[key]
     pe = as_jax(solution.params)
     if NODES in names:
-        pe[NODES] = jnp.zeros((m.n_nodes, 2))
+        pe[NODES] = jnp.zeros((m.n_nodes, m.dim))
     idx = selected_increments(increments, len(solution.increments))
     check_scalar(fn, solution, idx[-1])
     G, g, timing = adj.backward(solution, pe, idx, solver=solver)

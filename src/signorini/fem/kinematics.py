@@ -28,6 +28,8 @@ class PlaneStrain:
     """Plane strain per unit thickness."""
 
     name = "plane strain"
+    dim = 2
+    n_gauss = 4  # Gauss points of a cell (Q4, 2x2)
     #: the components of H that can be non-zero (the material tangent is taken in these only)
     active = ((0, 0), (0, 1), (1, 0), (1, 1))
 
@@ -70,6 +72,8 @@ class Axisymmetric:
     """
 
     name = "axisymmetric"
+    dim = 2
+    n_gauss = 4
     active = ((0, 0), (0, 1), (1, 0), (1, 1), (2, 2))
 
     def check_mesh(self, X: np.ndarray) -> None:

@@ -111,6 +111,52 @@ def cell_type(n_nodes: int) -> CellType:
     return {8: HEXAHEDRON, 4: TETRA}[n_nodes]
 
 
+@dataclass(frozen=True)
+class Solid3D:
+    """The kinematics of a 3-D body of ``cell`` cells (hexahedra or tetrahedra): the
+    full 3x3 displacement gradient, volumes det J, contact areas of the faces
+    (:func:`signorini.fem.mesh3d.face_areas`). The element kernels of this module
+    take it (or the cell type) where the 2-D ones take their kinematics."""
+
+    cell: CellType = None
+
+    name = "3-D"
+    dim = 3
+    active = tuple((i, j) for i in range(3) for j in range(3))
+
+    @property
+    def n_gauss(self) -> int:
+        return self.cell.n_gauss
+
+    def check_mesh(self, X) -> None:
+        if np.asarray(X).shape[1] != 3:
+            raise InputError("a 3-D body needs a 3-D mesh (Mesh3D: three coordinates per node)")
+
+    def contact_areas(self, X, faces, nodes):
+        return face_areas(X, faces, nodes)
+
+    @staticmethod
+    def displacement_gradients(ue, Xe, N, dNdX):
+        """H (g, 3, 3) = u_ai dN_a/dX_j at points with gradients dNdX (g, n, 3)."""
+        return jnp.einsum("ai,gaj->gij", ue, dNdX)
+
+    @staticmethod
+    def volume_weights(Xe, N, w_ref):
+        return w_ref
+
+    @staticmethod
+    def hoop_functions(Xe, N):
+        return None
+
+    @staticmethod
+    def edge_factors(Xa, Xb):
+        raise InputError("edge loads do not apply to a 3-D body (its loads act on faces)")
+
+
+def _cell(cell) -> CellType:
+    return cell.cell if isinstance(cell, Solid3D) else cell
+
+
 def physical_gradients(dN, Xe):
     """dN/dX (g, n, 3) and det(dX/dxi) (g,) from parent gradients dN (g, n, 3)."""
     J = jnp.einsum("gai,aj->gji", dN, Xe)  # dX_j/dxi_i
@@ -126,6 +172,7 @@ def _points(Xe, cell: CellType):
 def gauss_gradients(ue, Xe, cell: CellType, formulation=STANDARD):
     """Displacement gradients (g, 3, 3) seen by the material (Hbar for F-bar)
     and the volume weights (g,)."""
+    cell = _cell(cell)
     dNdX, w = _points(Xe, cell)
     H = jnp.einsum("ai,gaj->gij", ue, dNdX)
     if not formulation.linear:
@@ -153,6 +200,7 @@ def element_update(ue, Xe, material, mp, hn=None, cell: CellType = HEXAHEDRON,
         material: a material with ``update(H, h_n, mp)``. mp: its parameter values.
         hn: (n_gauss, n_state) history at the end of the previous increment (None: none).
     """
+    cell = _cell(cell)
     _check_formulation(cell, formulation)
     hn = _history(cell, hn)
     if formulation.linear:
@@ -177,6 +225,7 @@ def element_residual_tangent(ue, Xe, material, mp, hn=None, cell: CellType = HEX
                              formulation=STANDARD):
     """Internal forces (3 n,), tangent (3 n, 3 n) (node-major DOFs) and the
     updated history of one cell."""
+    cell = _cell(cell)
     _check_formulation(cell, formulation)
     hn = _history(cell, hn)
     n = cell.n_nodes
@@ -204,5 +253,57 @@ def element_residual_tangent(ue, Xe, material, mp, hn=None, cell: CellType = HEX
 def element_stress(ue, Xe, material, mp, hn=None, cell: CellType = HEXAHEDRON,
                    formulation=STANDARD):
     """Cauchy stress (3, 3) averaged over the Gauss points of one cell."""
+    cell = _cell(cell)
     H, w = gauss_gradients(ue, Xe, cell, formulation)
     return average_cauchy(material, mp, H, w, _history(cell, hn))
+
+
+def element_yield_ratio(ue, Xe, material, mp, hn, cell=HEXAHEDRON, formulation=STANDARD):
+    """(n_gauss,) ``material.yield_ratio`` at the Gauss points of one cell."""
+    cell = _cell(cell)
+    H, _ = gauss_gradients(ue, Xe, cell, formulation)
+    return jax.vmap(lambda h, hs: material.yield_ratio(h, hs, mp))(H, _history(cell, hn))
+
+
+#: 2x2 Gauss points of the parent square and the bilinear shape functions and
+#: parent gradients of a quadrilateral face there
+_QUAD_XI = np.array([[-_G, -_G], [_G, -_G], [_G, _G], [-_G, _G]])
+_QUAD_C = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+_QUAD_N = 0.25 * (1 + _QUAD_XI[:, None, 0] * _QUAD_C[None, :, 0]) * (1 + _QUAD_XI[:, None, 1] * _QUAD_C[None, :, 1])
+_QUAD_DN = 0.25 * np.stack([_QUAD_C[None, :, 0] * (1 + _QUAD_XI[:, None, 1] * _QUAD_C[None, :, 1]),
+                            _QUAD_C[None, :, 1] * (1 + _QUAD_XI[:, None, 0] * _QUAD_C[None, :, 0])],
+                           axis=-1)  # (gauss, node, 2)
+
+
+def face_areas(X, faces: np.ndarray, nodes: np.ndarray | None = None):
+    """A_S (n_contact,) = sum over the faces f of the set of int_f N_S dA, on the
+    reference surface (docs/theory.md §12.5): a third of each triangle's area, or
+    the 2x2 Gauss rule on each bilinear quadrilateral. They add up to the area
+    of the surface.
+
+    Args:
+        X: (n_nodes, 3) reference coordinates (JAX or NumPy, may depend on phi).
+        faces: (n_faces, 3) triangles or (n_faces, 4) quadrilaterals.
+        nodes: (n_contact,) sorted nodes of the faces (default: all of them).
+    """
+    faces = np.asarray(faces)
+    if nodes is None:
+        nodes = np.unique(faces.ravel())
+    xp = np if isinstance(X, np.ndarray) else jnp
+    Xf = X[faces]  # (f, k, 3)
+    if faces.shape[1] == 3:
+        a = 0.5 * xp.linalg.norm(xp.cross(Xf[:, 1] - Xf[:, 0], Xf[:, 2] - Xf[:, 0]), axis=1)
+        per_node = xp.repeat(a[:, None] / 3.0, 3, axis=1)
+    elif faces.shape[1] == 4:
+        J = xp.einsum("gak,fai->fgki", _QUAD_DN, Xf)  # (f, g, 2, 3): dX/dxi, dX/deta
+        dA = xp.linalg.norm(xp.cross(J[:, :, 0], J[:, :, 1]), axis=-1)  # (f, g)
+        per_node = xp.einsum("fg,ga->fa", dA, _QUAD_N)
+    else:
+        raise InputError(f"contact faces must be triangles or quadrilaterals, got {faces.shape[1]} "
+                         "nodes per face")
+    pos = np.searchsorted(nodes, faces)
+    if xp is np:
+        out = np.zeros(len(nodes))
+        np.add.at(out, pos.ravel(), per_node.ravel())
+        return out
+    return jnp.zeros(len(nodes)).at[pos.ravel()].add(per_node.ravel())

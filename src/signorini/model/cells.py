@@ -9,7 +9,7 @@ or None)``, and the material values ``mp`` are shared by every cell.
 
 from __future__ import annotations
 
-from ..fem import element
+from ..fem import element, solid
 from .chunks import Chunked
 
 
@@ -27,16 +27,21 @@ class CellKernels(Chunked):
     #: mesh and gives it chunks to share out (the forging's 200 cells: two)
     SIZES = (4096, 128)
 
+    @property
+    def side_by_side(self) -> bool:
+        return self.parts[1].dim != 3  # chunks.Chunked.side_by_side
+
     def _kernel(self, name: str):
         m, k, f = self.parts
+        fem = solid if k.dim == 3 else element
         if name == "update":
             def update(items, mp):
                 ue, Xe, he = items
-                r, h = element.element_update(ue, Xe, m, mp, he, k, f)
-                return r.reshape(8), h
+                r, h = fem.element_update(ue, Xe, m, mp, he, k, f)
+                return r.reshape(-1), h
             return update
         if name == "tangent":
-            return lambda items, mp: element.element_residual_tangent(*items[:2], m, mp, items[2], k, f)
+            return lambda items, mp: fem.element_residual_tangent(*items[:2], m, mp, items[2], k, f)
         if name == "stress":
-            return lambda items, mp: (element.element_stress(*items[:2], m, mp, items[2], k, f),)
+            return lambda items, mp: (fem.element_stress(*items[:2], m, mp, items[2], k, f),)
         raise KeyError(f"no element kernel {name!r}")

@@ -132,7 +132,7 @@ class IncrementChecks:
     def _snapshot(self, w, t):
         m = self.model
         X = np.asarray(m.reference(self.params))
-        u = np.asarray(w)[: 2 * m.n_nodes].reshape(-1, 2)
+        u = np.asarray(w)[: m.dim * m.n_nodes].reshape(-1, m.dim)
         snap = []
         for i, s in enumerate(m.surfaces):
             f = m.compiled.fields(to_device(w), self.params, t, i)

@@ -129,6 +129,12 @@ class Chunked:
             fn, f"{type(self).__name__}.{mode}.{name}.{outs}.{mask}", self.key)
         return p
 
+    #: whether chunks run side by side from the pool's threads; a kind whose
+    #: programs use XLA's own threads (the 3-D cells' larger contractions) runs
+    #: them one after the other: two such programs called at once from two
+    #: threads of a two-core machine wait for each other's threads for ever
+    side_by_side = True
+
     # -------------------------------------------------------------- running
     def _run(self, n: int, prog, call, items, dots=(), zero=()):
         """``call(items chunk, dots chunk)`` of program ``prog`` over the chunks of n
@@ -148,8 +154,8 @@ class Chunked:
                     c = tree_map(lambda x: _zero_tail(x, valid), c)
                 chunk.append(c)
             chunks.append((valid, tuple(chunk), tree_map(lambda x: np.take(x, index, axis=1), dots)))
-        if len(chunks) == 1:
-            return [(chunks[0][0], call(chunks[0][1], chunks[0][2]))]
+        if len(chunks) == 1 or not self.side_by_side:
+            return [(c[0], call(c[1], c[2])) for c in chunks]
         # build every executable here (once), then run the chunks from the pool's threads
         for size in {c[1][0].shape[0] if c[1][0] is not None else None for c in chunks}:
             first = next(c for c in chunks if c[1][0] is None or c[1][0].shape[0] == size)

@@ -57,7 +57,7 @@ class ModelContactNodes:
         s = self.surfaces[i]
         A, XS, NS, geo, cp = geometry[i]
         XS = np.asarray(XS)
-        x = XS + w[: 2 * self.n_nodes].reshape(-1, 2)[s.nodes]
+        x = XS + w[: self.dim * self.n_nodes].reshape(-1, self.dim)[s.nodes]
         lam = w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
         hs = None
         if history and s.has_history:
@@ -77,7 +77,7 @@ class ModelContactNodes:
         k = w_dot.shape[0]
         _, dA, dXS, dNS, dgeo, dcp = (None,) + tuple(geometry_dot[1][i])
         dXS = np.asarray(dXS)
-        dx = dXS + w_dot[:, : 2 * self.n_nodes].reshape(k, -1, 2)[:, s.nodes]
+        dx = dXS + w_dot[:, : self.dim * self.n_nodes].reshape(k, -1, self.dim)[:, s.nodes]
         dlam = w_dot[:, s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(
             k, s.nodes.size, s.n_mult)
         dhs = None

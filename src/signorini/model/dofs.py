@@ -1,6 +1,6 @@
 """The layout of the unknowns of a :class:`~signorini.model.problem.Problem`.
 
-``w`` (n_dof,) = [U (2 per node, node-major), Lambda (the multipliers of each
+``w`` (n_dof,) = [U (2 or 3 per node, node-major), Lambda (the multipliers of each
 contact surface, node-major)]. Prescribed displacement DOFs are part of ``w``
 (their values are set, not solved for); the rest are *free*. Building the
 layout is where inconsistent boundary data is caught: unused nodes, a DOF
@@ -22,16 +22,16 @@ class Surface:
     """Static data of one contact surface."""
 
     contact: object  # Contact
-    edges: np.ndarray  # (n_edges, 2)
+    edges: np.ndarray  # (n_edges, 2); in 3-D the faces (n_faces, 4 or 3)
     nodes: np.ndarray  # (nc,) mesh node indices
     lam_offset: int  # first multiplier DOF
     n_mult: int
-    dofs: np.ndarray  # (nc, 2 + n_mult) DOFs of each contact element
+    dofs: np.ndarray  # (nc, dim + n_mult) DOFs of each contact element
     tangential: np.ndarray | None  # (nc,) 1 where a friction node carries lam_T, else 0; None: no history
 
     @property
     def lam_dofs(self) -> np.ndarray:
-        return self.dofs[:, 2:]
+        return self.dofs[:, self.dofs.shape[1] - self.n_mult:]
 
     @property
     def has_history(self) -> bool:
@@ -44,8 +44,9 @@ class DofLayout:
     def __init__(self, problem):
         mesh = problem.mesh
         self.n_nodes = mesh.n_nodes
+        self.dim = d = int(mesh.nodes.shape[1])  # displacement components per node
         self.conn = mesh.cells
-        self.edofs = np.stack([2 * self.conn, 2 * self.conn + 1], axis=-1).reshape(-1, 8)
+        self.edofs = (d * self.conn[:, :, None] + np.arange(d)).reshape(len(self.conn), -1)
         used = np.zeros(mesh.n_nodes, bool)
         used[self.conn.ravel()] = True
         if not used.all():
@@ -64,10 +65,11 @@ class DofLayout:
     def _prescribe(self, problem):
         pres, seen = [], {}
         for f in problem.fixed:
-            if f.component not in (0, 1):
-                raise InputError(f"Fixed({f.node_set!r}): component must be 0 or 1, got {f.component}")
+            if f.component not in range(self.dim):
+                raise InputError(f"Fixed({f.node_set!r}): component must be one of "
+                                 f"{list(range(self.dim))}, got {f.component}")
             for n in problem.mesh.node_set(f.node_set):
-                d = 2 * int(n) + f.component
+                d = self.dim * int(n) + f.component
                 if d in seen:
                     raise InputError(
                         f"inconsistent boundary sets: DOF {f.component} of node {n} is prescribed "
@@ -79,12 +81,22 @@ class DofLayout:
 
     def _surfaces(self, problem):
         mesh = problem.mesh
-        off = 2 * self.n_nodes
+        d = self.dim
+        off = d * self.n_nodes
         surfaces = []
         pres = set(self.prescribed.tolist())
         for c in problem.contact:
-            edges = mesh.edge_set(c.edges)
-            check_edges(edges, c.edges)
+            if d == 3:  # a face set
+                edges = mesh.face_set(c.edges)
+                if not len(edges):
+                    raise InputError(f"contact face set {c.edges!r} is empty")
+                if c.method.has_history:
+                    raise InputError(f"contact {c.edges!r}: friction in a 3-D problem is not "
+                                     "available yet (the node law is, signorini.contact.friction3d); "
+                                     "use a frictionless method")
+            else:
+                edges = mesh.edge_set(c.edges)
+                check_edges(edges, c.edges)
             nodes = contact_nodes(edges)
             for other in surfaces:
                 common = np.intersect1d(nodes, other.nodes)
@@ -94,15 +106,15 @@ class DofLayout:
                         f"{common.size} node(s) (first: node {int(common[0])}); a node may belong "
                         "to one Contact only: split the edge sets, or use one Contact per obstacle "
                         "on disjoint parts of the boundary")
-            both = np.array([2 * n in pres and 2 * n + 1 in pres for n in nodes])
+            both = np.array([all(d * n + k in pres for k in range(d)) for n in nodes])
             if both.any():
                 raise InputError(
                     f"inconsistent boundary sets: contact node {int(nodes[np.argmax(both)])} of "
-                    f"{c.edges!r} has both displacement components prescribed, so contact there "
+                    f"{c.edges!r} has every displacement component prescribed, so contact there "
                     "is meaningless; remove it from the contact set or free one component")
             m = c.method.n_multipliers
             lam = off + np.arange(len(nodes) * m).reshape(len(nodes), m)
-            dofs = np.concatenate([2 * nodes[:, None], 2 * nodes[:, None] + 1, lam], axis=1)
+            dofs = np.concatenate([d * nodes[:, None] + np.arange(d), lam], axis=1)
             tang = self._tangential_mask(c, mesh.nodes, edges, nodes, pres)
             surfaces.append(Surface(c, edges, nodes, off, m, dofs, tang))
             off += len(nodes) * m
@@ -127,8 +139,8 @@ class DofLayout:
         return mask
 
     def split(self, w):
-        """w -> (u (n_nodes, 2), [lam_s (nc_s, m_s) per surface])."""
-        u = w[: 2 * self.n_nodes].reshape(-1, 2)
+        """w -> (u (n_nodes, dim), [lam_s (nc_s, m_s) per surface])."""
+        u = w[: self.dim * self.n_nodes].reshape(-1, self.dim)
         lams = [w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
                 for s in self.surfaces]
         return u, lams

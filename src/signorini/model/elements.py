@@ -22,9 +22,9 @@ class ModelElements:
     """The element part of residual, tangent and update, and their derivatives."""
 
     def _cell_arrays(self, w, params, state_n):
-        """(u_e (n, 4, 2), X_e (n, 4, 2), mp, h_e or None) of every cell (NumPy)."""
+        """(u_e (n, k, dim), X_e (n, k, dim), mp, h_e or None) of every cell (NumPy)."""
         X = np.asarray(self.reference(params))
-        ue = np.asarray(w)[self.edofs].reshape(-1, 4, 2)
+        ue = np.asarray(w)[self.edofs].reshape(len(self.conn), -1, self.dim)
         h = None
         if self.n_state:
             h = np.asarray(self._material_history(state_n))
@@ -38,8 +38,9 @@ class ModelElements:
         return np.stack([np.bincount(flat, weights=r.ravel(), minlength=self.n_dof) for r in re])
 
     def _scatter_nodes(self, Xbar) -> np.ndarray:
-        """(n_nodes, 2) sum of per-cell (n, 4, 2) node values."""
-        return self.scatter(Xbar.reshape(-1, 8))[:2 * self.n_nodes].reshape(-1, 2)
+        """(n_nodes, dim) sum of per-cell (n, k, dim) node values."""
+        d = self.dim
+        return self.scatter(Xbar.reshape(len(self.conn), -1))[:d * self.n_nodes].reshape(-1, d)
 
     @property
     def _edofs_flat(self):
@@ -96,7 +97,8 @@ class ModelElements:
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
         dX, dmp = self._parameter_jvp(params, e)
         k = len(next(iter(e.values())))
-        du = None if w_dot is None else np.asarray(w_dot)[:, self.edofs].reshape(k, -1, 4, 2)
+        du = None if w_dot is None else np.asarray(w_dot)[:, self.edofs].reshape(
+            k, len(self.conn), -1, self.dim)
         dXe = np.asarray(dX)[:, self.conn] if self.shape_names else None
         dh = None
         if self.n_state:
@@ -111,7 +113,7 @@ class ModelElements:
         ``name`` with per-cell cotangents ``cot`` (one per output)."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
         (du, dXe, dh), dmp = self.cells.vjp(name, outs, (ue, Xe, he), mp, cot)
-        w_bar = self.scatter(du.reshape(-1, 8))
+        w_bar = self.scatter(du.reshape(len(self.conn), -1))
         p_bar = self._parameter_vjp(params, self._scatter_nodes(dXe), dmp)
         return w_bar, p_bar, dh
 

@@ -6,7 +6,6 @@ model's layout, kernels and compiled programs)."""
 
 from __future__ import annotations
 
-from ..fem import element
 from .._jax import jax, jnp
 
 
@@ -64,7 +63,7 @@ class ModelFields:
         if self.n_state and self.material.yield_ratio is not None:
             mp = self.material.values(params)
             kin, form, mat = self.kinematics, self.formulation, self.material
-            ratio = self._over_cells(lambda ue, Xe, he: element.element_yield_ratio(
+            ratio = self._over_cells(lambda ue, Xe, he: self.fem.element_yield_ratio(
                 ue, Xe, mat, mp, he, kin, form), u, X, self._material_history(state_n))
         return tuple(out), ratio
 
@@ -76,5 +75,5 @@ class ModelFields:
         mp = self.material.values(params)
         hn = self._material_history(state_n)
         kin, form, mat = self.kinematics, self.formulation, self.material
-        return self._over_cells(lambda ue, Xe, he: element.element_stress(ue, Xe, mat, mp, he, kin, form),
+        return self._over_cells(lambda ue, Xe, he: self.fem.element_stress(ue, Xe, mat, mp, he, kin, form),
                                 u, X, hn)

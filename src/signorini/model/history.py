@@ -11,7 +11,6 @@ import time
 
 import numpy as np
 
-from ..fem import element
 from .._jax import jax, jnp, to_device
 from ..params import unit_tangents
 
@@ -71,7 +70,7 @@ class ModelHistory:
         h0 = None
         if self.n_state:
             h0 = jnp.broadcast_to(self.material.initial_state(),
-                                  (len(self.conn), element.N_GAUSS, self.n_state))
+                                  (len(self.conn), self.kinematics.n_gauss, self.n_state))
         contact = self._update_contact(w, params, 0.0, (w, (None,) * len(self.surfaces), None))[1]
         return (w, contact, h0)
 

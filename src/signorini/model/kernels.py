@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fem import element
+from ..fem import element, solid
 from .._programs import Program
 from .._jax import jax, jnp, to_device
 from ..fem.assembly import SparsityPattern
@@ -110,9 +110,15 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         self._check_names()
         self.kinematics = p.kinematics
         self.kinematics.check_mesh(p.mesh.nodes)
+        self.dim = layout.dim
+        #: the element kernels of the body's kind of cell: Q4 (2-D) or the 3-D cells
+        self.fem = solid if self.dim == 3 else element
         self.formulation = p.resolved_formulation()
         self.material = p.material
         self.n_state = int(p.material.n_state)
+        if self.dim == 3 and p.loads:
+            raise InputError("boundary loads (Pressure, Traction) on a 3-D body are not available "
+                             "yet; prescribe displacements (Fixed) or move an obstacle instead")
         self.load_edges = [p.mesh.edge_set(l.edges) for l in p.loads]
         finite = p.material.finite_strain
         self.linear_contact = [
@@ -302,11 +308,11 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         u, _ = self.split(w)
         mp = self.material.values(params)
         hn = self._material_history(state_n)
-        kin, form, mat = self.kinematics, self.formulation, self.material
+        kin, form, mat, fem = self.kinematics, self.formulation, self.material, self.fem
         if tangent:
-            f = lambda ue, Xe, he: element.element_residual_tangent(ue, Xe, mat, mp, he, kin, form)
+            f = lambda ue, Xe, he: fem.element_residual_tangent(ue, Xe, mat, mp, he, kin, form)
         else:
-            f = lambda ue, Xe, he: element.element_update(ue, Xe, mat, mp, he, kin, form)
+            f = lambda ue, Xe, he: fem.element_update(ue, Xe, mat, mp, he, kin, form)
         return self._over_cells(f, u, X, hn)
 
     #: element kernels run over chunks of CELL_CHUNK cells on meshes of at least
@@ -384,7 +390,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
                 obstacle = self.obstacle_at(s, X0)
 
                 def r(v):
-                    out = method.residual(v[:2], v[2:], a, geo, obstacle, cp, hs)
+                    out = method.residual(v[:self.dim], v[self.dim:], a, geo, obstacle, cp, hs)
                     return out, out
                 return jax.jacfwd(r, has_aux=True)(jnp.concatenate([xs, ls]))
 

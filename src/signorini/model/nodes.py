@@ -43,8 +43,10 @@ class NodeKernels(Chunked):
                 if hs is not None and hasattr(method, "cases"):  # flags once, as data
                     hs = tuple(hs) + (method.cases(x, lam, geo, ob, cp, hs),)
 
+                d = x.shape[-1]  # the node's coordinates (2 or 3)
+
                 def r(v):
-                    out = method.residual(v[:2], v[2:], A, geo, ob, cp, hs)
+                    out = method.residual(v[:d], v[d:], A, geo, ob, cp, hs)
                     return out, out
                 return jax.jacfwd(r, has_aux=True)(jnp.concatenate([x, lam]))
             return tangent

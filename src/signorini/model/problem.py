@@ -18,6 +18,7 @@ from ..errors import InputError, UnknownParameterError
 from ..fem.kinematics import PLANE_STRAIN
 from ..fem.mesh import Mesh
 from ..fem.element import FBAR, STANDARD
+from ..fem.solid import Solid3D
 from ..interfaces import ContactLaw, ElementFormulation, Kinematics, Material, Obstacle, require
 
 
@@ -77,6 +78,12 @@ class Problem:
         object.__setattr__(self, "shape", shape)
         if self.shape_nominal is None:
             object.__setattr__(self, "shape_nominal", {k: self.params[k] for k in shape})
+        if self.mesh.nodes.shape[1] == 3:  # a 3-D mesh: its own kinematics
+            if self.kinematics is PLANE_STRAIN:
+                object.__setattr__(self, "kinematics", Solid3D(self.mesh.cell))
+            elif getattr(self.kinematics, "dim", 2) != 3:
+                raise InputError(f"{self.kinematics.name} kinematics need a 2-D mesh; this mesh is "
+                                 "3-D (leave kinematics at its default for a 3-D body)")
         require(self.material, Material, "material")
         require(self.kinematics, Kinematics, "kinematics")
         if self.formulation is not None:

@@ -17,8 +17,9 @@ from ..errors import InputError
 
 
 def _vec3(a):
+    """Points or vectors with three components (2-D ones get z = 0)."""
     a = np.asarray(a, dtype=float)
-    return np.column_stack([a, np.zeros(len(a))])
+    return a if a.shape[1] == 3 else np.column_stack([a, np.zeros(len(a))])
 
 
 def write_vtu(solution, path, i: int = -1) -> Path:
@@ -80,7 +81,8 @@ def write_vtu(solution, path, i: int = -1) -> Path:
         cell["plastic_switch"] = [on]
     if getattr(solution, "shape_gradient", None) is not None and i in (-1, len(solution.increments) - 1):
         point["adjoint_shape_gradient"] = _vec3(solution.shape_gradient)
-    helper.run("vtu", path, _vec3(X), "quad", np.asarray(m.conn), point, cell)
+    kind = "quad" if m.dim == 2 else m.kinematics.cell.name  # "hexahedron" or "tetra"
+    helper.run("vtu", path, _vec3(X), kind, np.asarray(m.conn), point, cell)
     return Path(path)
 
 
