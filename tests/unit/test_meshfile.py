@@ -151,7 +151,6 @@ def _write_gmsh_3d(path, tets=False, flip=False, inner_face=False):
         c = m.cells[0]
         faces = np.vstack([faces, c[[1, 2, 6, 5]] if not tets else [[c[0], c[2], c[3]]]])
         tags = np.r_[tags, 3]
-    extra = np.array([[0, 1, 2, 3, 4, 5, 6, 7]]) if False else None  # noqa: F841
     mesh = meshio.Mesh(m.nodes, [(vol, cells), (face, faces)],
                        cell_data={"gmsh:physical": [np.ones(len(cells), int), tags],
                                   "gmsh:geometrical": [np.ones(len(cells), int), tags]},

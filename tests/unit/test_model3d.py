@@ -105,7 +105,6 @@ def test_a_3d_solution_writes_vtu(tmp_path):
 
 def test_what_3d_does_not_take_yet_is_named():
     mesh = block(n=3)
-    law = sg.AugmentedLagrangian()
     with pytest.raises(sg.InputError, match="kinematics need a 2-D mesh"):
         sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, kinematics=sg.Axisymmetric())
     with pytest.raises(sg.InputError, match="component must be one of \\[0, 1, 2\\]"):
@@ -118,7 +117,6 @@ def test_what_3d_does_not_take_yet_is_named():
     with pytest.raises(sg.InputError, match="boundary loads .* 3-D body are not available yet"):
         sg.solve(sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, fixed=[sg.Fixed("z0", 2)],
                             loads=[sg.Pressure("z1", 1.0)]))
-    del law
 
 
 def test_the_kind_programs_give_the_whole_mesh_solution(monkeypatch):
