@@ -68,7 +68,7 @@ class Mesh3D(Cells):
             ns[k] = v
         object.__setattr__(self, "node_sets", ns)
         check_cells(self.nodes, cells)
-        boundary = {_key(f): tuple(f) for f in self.boundary_faces()}
+        boundary = {face_key(f): tuple(f) for f in self.boundary_faces()}
         k_face = self.cell.faces.shape[1]
         fs = {}
         for k, v in self.face_sets.items():
@@ -77,7 +77,7 @@ class Mesh3D(Cells):
                 raise InputError(f"face set {k!r} must be an (n_faces, {k_face}) array of node "
                                  f"indices for {self.cell.name} cells, got shape {a.shape}")
             for f in a:
-                own = boundary.get(_key(f))
+                own = boundary.get(face_key(f))
                 if own is None:
                     raise InputError(f"face set {k!r}: face {f.tolist()} is not on the boundary "
                                      "of the mesh; loads and contact need boundary faces")
@@ -103,7 +103,8 @@ class Mesh3D(Cells):
         return named(self.face_sets, "face", name)
 
 
-def _key(face) -> tuple:
+def face_key(face) -> tuple:
+    """The face's nodes, sorted: the same for a face however it is numbered."""
     return tuple(sorted(int(i) for i in face))
 
 
@@ -186,13 +187,13 @@ def tetrahedra(mesh: Mesh3D) -> Mesh3D:
     cells = mesh.cells[:, _HEX_TO_TETS].reshape(-1, 4)
     tets = Mesh3D(mesh.nodes, cells)
     tri = tets.boundary_faces()
-    by_key = {_key(f): f for f in tri}
+    by_key = {face_key(f): f for f in tri}
     face_sets = {}
     for name, quads in mesh.face_sets.items():
         out = []
         for q in quads:
             for f in ((q[0], q[1], q[2]), (q[0], q[2], q[3]), (q[1], q[2], q[3]), (q[0], q[1], q[3])):
-                t = by_key.get(_key(f))
+                t = by_key.get(face_key(f))
                 if t is not None and set(int(i) for i in t) <= set(int(i) for i in q):
                     out.append(t)
         face_sets[name] = np.unique(np.array(out), axis=0)

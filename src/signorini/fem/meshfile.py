@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InputError, SignoriniWarning
 from .mesh import Mesh, signed_jacobians
-from .mesh3d import Mesh3D, cell_jacobians
+from .mesh3d import Mesh3D, cell_jacobians, face_key
 
 log = logging.getLogger("signorini")
 
@@ -252,7 +252,7 @@ def _mesh_3d(path, m) -> Mesh3D:
         probe = Mesh3D(nodes, cells)
     except InputError as e:
         raise type(e)(f"{path}: {e}") from None
-    boundary = {tuple(sorted(int(i) for i in f)): f for f in probe.boundary_faces()}
+    boundary = {face_key(f): f for f in probe.boundary_faces()}
     names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
     phys = m.cell_data.get("gmsh:physical")
     face_sets, node_sets = {}, {}
@@ -270,7 +270,7 @@ def _mesh_3d(path, m) -> Mesh3D:
             if block.type == face:
                 faces = []
                 for f in data:
-                    own = boundary.get(tuple(sorted(int(i) for i in f)))
+                    own = boundary.get(face_key(f))
                     if own is None:
                         raise InputError(f"{path}: face set {name!r} has the face at "
                                          f"{nodes[f].round(6).tolist()} that is not on the boundary "

@@ -25,7 +25,7 @@ import numpy as np
 
 from .._jax import jax, jnp
 from ..errors import InputError
-from .element import STANDARD, FBar, average_cauchy
+from .element import DN_PARENT, N_PARENT, STANDARD, FBar, average_cauchy
 
 _G = 1.0 / np.sqrt(3.0)
 
@@ -115,7 +115,7 @@ def cell_type(n_nodes: int) -> CellType:
 class Solid3D:
     """The kinematics of a 3-D body of ``cell`` cells (hexahedra or tetrahedra): the
     full 3x3 displacement gradient, volumes det J, contact areas of the faces
-    (:func:`signorini.fem.mesh3d.face_areas`). The element kernels of this module
+    (:func:`face_areas`). The element kernels of this module
     take it (or the cell type) where the 2-D ones take their kinematics."""
 
     cell: CellType = None
@@ -265,16 +265,6 @@ def element_yield_ratio(ue, Xe, material, mp, hn, cell=HEXAHEDRON, formulation=S
     return jax.vmap(lambda h, hs: material.yield_ratio(h, hs, mp))(H, _history(cell, hn))
 
 
-#: 2x2 Gauss points of the parent square and the bilinear shape functions and
-#: parent gradients of a quadrilateral face there
-_QUAD_XI = np.array([[-_G, -_G], [_G, -_G], [_G, _G], [-_G, _G]])
-_QUAD_C = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-_QUAD_N = 0.25 * (1 + _QUAD_XI[:, None, 0] * _QUAD_C[None, :, 0]) * (1 + _QUAD_XI[:, None, 1] * _QUAD_C[None, :, 1])
-_QUAD_DN = 0.25 * np.stack([_QUAD_C[None, :, 0] * (1 + _QUAD_XI[:, None, 1] * _QUAD_C[None, :, 1]),
-                            _QUAD_C[None, :, 1] * (1 + _QUAD_XI[:, None, 0] * _QUAD_C[None, :, 0])],
-                           axis=-1)  # (gauss, node, 2)
-
-
 def face_areas(X, faces: np.ndarray, nodes: np.ndarray | None = None):
     """A_S (n_contact,) = sum over the faces f of the set of int_f N_S dA, on the
     reference surface (docs/theory.md §12.5): a third of each triangle's area, or
@@ -295,9 +285,10 @@ def face_areas(X, faces: np.ndarray, nodes: np.ndarray | None = None):
         a = 0.5 * xp.linalg.norm(xp.cross(Xf[:, 1] - Xf[:, 0], Xf[:, 2] - Xf[:, 0]), axis=1)
         per_node = xp.repeat(a[:, None] / 3.0, 3, axis=1)
     elif faces.shape[1] == 4:
-        J = xp.einsum("gak,fai->fgki", _QUAD_DN, Xf)  # (f, g, 2, 3): dX/dxi, dX/deta
+        # the face's bilinear map at the Q4's 2x2 Gauss points (its unit weights)
+        J = xp.einsum("gak,fai->fgki", DN_PARENT, Xf)  # (f, g, 2, 3): dX/dxi, dX/deta
         dA = xp.linalg.norm(xp.cross(J[:, :, 0], J[:, :, 1]), axis=-1)  # (f, g)
-        per_node = xp.einsum("fg,ga->fa", dA, _QUAD_N)
+        per_node = xp.einsum("fg,ga->fa", dA, N_PARENT)
     else:
         raise InputError(f"contact faces must be triangles or quadrilaterals, got {faces.shape[1]} "
                          "nodes per face")

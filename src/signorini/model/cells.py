@@ -13,6 +13,13 @@ from ..fem import element, solid
 from .chunks import Chunked
 
 
+def element_family(kinematics):
+    """The module of element kernels for a body of this kinematics: the 3-D cells
+    (:mod:`signorini.fem.solid`) or the Q4 (:mod:`signorini.fem.element`); both
+    take (u_e, X_e, material, mp, h_n, kinematics, formulation)."""
+    return solid if kinematics.dim == 3 else element
+
+
 class CellKernels(Chunked):
     """The element programs of one kind: ``CellKernels.of(material, kinematics,
     formulation)``. Kernels: ``"update"`` -> (r (8,), h (4, n_state)) and
@@ -33,7 +40,7 @@ class CellKernels(Chunked):
 
     def _kernel(self, name: str):
         m, k, f = self.parts
-        fem = solid if k.dim == 3 else element
+        fem = element_family(k)
         if name == "update":
             def update(items, mp):
                 ue, Xe, he = items

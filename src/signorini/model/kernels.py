@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fem import element, solid
+from ..fem import element
 from .._programs import Program
 from .._jax import jax, jnp, to_device
 from ..fem.assembly import SparsityPattern
@@ -43,7 +43,7 @@ from ..errors import InputError
 from ..contact.obstacles import Linearized
 from .fields import ModelFields
 from .geometry import NODES, ModelGeometry  # noqa: F401  (NODES: re-exported)
-from .cells import CellKernels
+from .cells import CellKernels, element_family
 from .contact_nodes import ModelContactNodes
 from .elements import ModelElements
 from .history import ModelHistory
@@ -112,7 +112,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         self.kinematics.check_mesh(p.mesh.nodes)
         self.dim = layout.dim
         #: the element kernels of the body's kind of cell: Q4 (2-D) or the 3-D cells
-        self.fem = solid if self.dim == 3 else element
+        self.fem = element_family(self.kinematics)
         self.formulation = p.resolved_formulation()
         self.material = p.material
         self.n_state = int(p.material.n_state)
