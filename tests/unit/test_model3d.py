@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
-from signorini.contact.friction3d import CoulombDisc
+from signorini._jax import jnp
 from signorini.contact.obstacles3d import Cylinder, Sphere
 from signorini.fem.mesh import graded_coordinates
 from signorini.fem.mesh3d import Mesh3D, box, tetrahedra
@@ -109,14 +109,118 @@ def test_what_3d_does_not_take_yet_is_named():
         sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, kinematics=sg.Axisymmetric())
     with pytest.raises(sg.InputError, match="component must be one of \\[0, 1, 2\\]"):
         sg.solve(sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, fixed=[sg.Fixed("z0", 3)]))
-    with pytest.raises(sg.InputError, match="friction in a 3-D problem is not available yet"):
-        sg.solve(sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {"mu": 0.3, "eps": 1.0, "eps_t": 1.0},
-                            fixed=[sg.Fixed("z0", 2)],
-                            contact=[sg.Contact(Sphere(radius=1.0, centre=(0.0, 0.0, 2.0)), "z1",
-                                                CoulombDisc())]))
     with pytest.raises(sg.InputError, match="boundary loads .* 3-D body are not available yet"):
         sg.solve(sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, fixed=[sg.Fixed("z0", 2)],
                             loads=[sg.Pressure("z1", 1.0)]))
+
+
+MU = 0.1
+
+
+def hertz3d_friction(mesh, R=1.0, E=100.0, mu=MU, shift=(0.0, 0.0, 0.0), rotation=None,
+                     fixed=None):
+    """The sphere pressed into the block with Coulomb friction (the 2-D law given:
+    a 3-D surface takes it as the Coulomb disc); ``rotation`` (3, 3) turns the
+    mesh, the sphere and its motion together."""
+    Q = np.eye(3) if rotation is None else np.asarray(rotation)
+    mesh = Mesh3D(mesh.nodes @ Q.T, mesh.cells, mesh.node_sets, mesh.face_sets)
+    centre = lambda p: (jnp.asarray(shift) + jnp.asarray(Q) @ jnp.array([0.0, 0.0, p["R"] + 1.0]))
+    c = tuple((lambda p, k=k: centre(p)[k]) for k in range(3))
+    motion = tuple(float(v) for v in Q @ np.array([0.0, 0.0, -D]))
+    sphere = Sphere(radius="R", centre=c, motion=motion)
+    mesh = Mesh3D(mesh.nodes + np.asarray(shift), mesh.cells, mesh.node_sets, mesh.face_sets)
+    if fixed is None:
+        fixed = [sg.Fixed("z0", 2), sg.Fixed("x0", 0), sg.Fixed("y0", 1)]
+    return sg.Problem(mesh, sg.LinearElastic(E="E", nu=0.3),
+                      {"E": E, "R": R, "mu": mu, "eps": E, "eps_t": E}, fixed=fixed,
+                      contact=[sg.Contact(sphere, "z1", sg.Coulomb(mu="mu", eps_n="eps", eps_t="eps_t"))])
+
+
+def test_friction_ddm_equals_fd_through_the_path():
+    """Coulomb friction in 3-D (the disc, two tangential multipliers, the closest
+    point as history): with stick and slip nodes at the end of four increments,
+    DDM = central FD of p_N and of both tangential tractions for R and mu, and the
+    supports balance the contact force."""
+    mesh = block(n=6)
+    sol = sg.solve(hertz3d_friction(mesh), steps=4, wrt=["R", "mu"])
+    c = sol.contact()
+    status = set(c["status"][c["p_N"] > 0])
+    assert status == {"stick", "slip"} and c["p_T"].shape == (mesh.n_nodes and len(c["p_N"]), 2)
+    # symmetry planes: a node on x = 0 or y = 0 carries no traction across it, one on
+    # the axis none at all
+    on_axis = np.all(np.abs(c["x_ref"][:, :2]) < 1e-12, axis=1)
+    assert np.all(c["p_T"][on_axis] == 0.0)
+    # the supports hold the contact force: in z the base, in x and y the symmetry planes
+    force = np.sum(c["area"][:, None] * c["traction"], axis=0)
+    assert force[2] < -0.03 and abs(force[0]) > 1e-4 * abs(force[2])
+    assert np.allclose(sol.reactions().sum(axis=0), -force, rtol=1e-9, atol=0)
+    for name, h in (("R", 1e-5), ("mu", 1e-4)):
+        val = {"R": 1.0, "mu": MU}[name]
+        cs = [sg.solve(hertz3d_friction(mesh, **{name: val + s * h}), steps=4).contact()
+              for s in (1, -1)]
+        for q in ("p_N", "p_T"):
+            fd = (cs[0][q] - cs[1][q]) / (2 * h)
+            ddm = c[f"d{q}_d{name}"]
+            assert np.max(np.abs(fd - ddm)) < 1e-6 * np.max(np.abs(ddm)), (name, q)
+
+
+def test_friction_on_a_slab_is_the_plane_strain_problem():
+    """A one-cell slab with u_z = 0 against a cylinder along z, with Coulomb
+    friction over three increments: the pressures, the tangential tractions and
+    their sensitivities to R and mu are the plane-strain problem's at both layers
+    (u_z prescribed: each node carries only the in-plane tangential multiplier)."""
+    xs = graded_coordinates(1.0, 0.3, 8, 1.3)
+    ys = 1.0 - graded_coordinates(1.0, 0.3, 6, 1.3)[::-1]
+    t = 0.25
+    law = sg.Coulomb(mu="mu", eps_n="eps", eps_t="eps_t")
+    params = {"E": 100.0, "R": 1.0, "mu": 0.2, "eps": 100.0, "eps_t": 100.0}
+    p2 = sg.Problem(sg.rectangle(xs, ys), sg.LinearElastic(E="E", nu=0.3), params,
+                    fixed=[sg.Fixed("bottom", 1), sg.Fixed("left", 0)],
+                    contact=[sg.Contact(sg.Circle(radius="R", centre=(0.0, lambda p: p["R"] + 1.0),
+                                                  motion=(0.0, -2 * D)), "top", law)])
+    p3 = sg.Problem(box(xs, ys, [0.0, t]), sg.LinearElastic(E="E", nu=0.3), params,
+                    fixed=[sg.Fixed("y0", 1), sg.Fixed("x0", 0), sg.Fixed("all", 2)],
+                    contact=[sg.Contact(Cylinder(radius="R", centre=(0.0, lambda p: p["R"] + 1.0, 0.0),
+                                                 axis=(0.0, 0.0, 1.0), motion=(0.0, -2 * D, 0.0)),
+                                        "y1", law)])
+    c2 = sg.solve(p2, steps=3, wrt=["R", "mu"]).contact()
+    c3 = sg.solve(p3, steps=3, wrt=["R", "mu"]).contact()
+    assert set(c2["status"][c2["p_N"] > 0]) == {"stick", "slip"}
+    for layer in (0.0, t):
+        on = np.abs(c3["x_ref"][:, 2] - layer) < 1e-12
+        order = np.argsort(c3["x_ref"][on, 0])
+        assert list(c3["status"][on][order]) == list(c2["status"])
+        assert np.all(c3["p_T"][on][:, 1] == 0.0)  # the out-of-plane multiplier
+        for f in ("p_N", "dp_N_dR", "dp_N_dmu", "p_T", "dp_T_dR", "dp_T_dmu"):
+            a, b = c2[f], c3[f][on][order]
+            if f.startswith(("p_T", "dp_T")):
+                b = b[:, 0] * np.sign(np.sum(a * b[:, 0]))  # t1 = +-T
+            assert np.allclose(a, b, rtol=0, atol=1e-9 * np.abs(a).max()), (f, layer)
+
+
+def test_friction_rigid_motion_changes_nothing():
+    """The whole frictional problem (a full block, its base held, so no symmetry
+    planes) turned by a rotation and moved by a translation: the same pressures,
+    the same magnitudes of the tangential tractions, the same stick/slip zones and
+    the same sensitivities (the tangent bases differ: e_S is a property of the mesh)."""
+    g = graded_coordinates(1.0, 0.25, 3, 1.5)
+    full = np.concatenate([-g[::-1], g[1:]])
+    mesh = box(full, full, 1.0 - g[::-1])
+    fixed = [sg.Fixed("z0", k) for k in range(3)]
+    a = sg.solve(hertz3d_friction(mesh, fixed=fixed), steps=3, wrt=["R"]).contact()
+    angle = 0.7
+    axis = np.array([1.0, 2.0, 2.0]) / 3.0
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    Q = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+    b = sg.solve(hertz3d_friction(mesh, fixed=[sg.Fixed("z0", k) for k in range(3)], rotation=Q,
+                                  shift=(0.4, -1.1, 0.3)), steps=3, wrt=["R"]).contact()
+    assert set(a["status"][a["p_N"] > 0]) == {"stick", "slip"}
+    assert list(a["status"]) == list(b["status"])
+    scale = a["p_N"].max()
+    for f in ("p_N", "dp_N_dR"):
+        assert np.allclose(a[f], b[f], rtol=0, atol=1e-10 * np.abs(a[f]).max()), f
+    norm = lambda v: np.linalg.norm(v, axis=1)
+    assert np.allclose(norm(a["p_T"]), norm(b["p_T"]), rtol=0, atol=1e-10 * scale)
 
 
 def test_the_kind_programs_give_the_whole_mesh_solution(monkeypatch):
@@ -125,19 +229,21 @@ def test_the_kind_programs_give_the_whole_mesh_solution(monkeypatch):
     from signorini.algorithms import stepping
     from signorini.model.kernels import Model
 
-    pb = hertz3d(block(n=4))
-    a = sg.solve(pb, wrt=["R", "E"])
-    monkeypatch.setattr(Model, "WHOLE_MESH_UP_TO", 0)
-    monkeypatch.setattr(stepping, "_MODELS", type(stepping._MODELS)())
-    b = sg.solve(pb, wrt=["R", "E"])
-    assert b.model.by_kind and not a.model.by_kind
-    ca, cb = a.contact(), b.contact()
-    for f in ("p_N", "dp_N_dR", "dp_N_dE"):
-        assert np.allclose(ca[f], cb[f], rtol=0, atol=1e-9 * np.abs(ca[f]).max()), f
+    for pb, steps in ((hertz3d(block(n=4)), 1), (hertz3d_friction(block(n=4)), 2)):
+        a = sg.solve(pb, steps=steps, wrt=["R", "E"])
+        with monkeypatch.context() as mp:
+            mp.setattr(Model, "WHOLE_MESH_UP_TO", 0)
+            mp.setattr(stepping, "_MODELS", type(stepping._MODELS)())
+            b = sg.solve(pb, steps=steps, wrt=["R", "E"])
+        assert b.model.by_kind and not a.model.by_kind
+        ca, cb = a.contact(), b.contact()
+        for f in ("p_N", "dp_N_dR", "dp_N_dE", "p_T", "dp_T_dR", "traction"):
+            assert np.allclose(ca[f], cb[f], rtol=0, atol=1e-9 * np.abs(ca[f]).max()), f
 
 
 def test_adjoint_equals_ddm_in_3d():
-    """The adjoint gradient of a response equals the DDM's for R and E, and its
+    """Frictionless and with Coulomb friction through three increments: the
+    adjoint gradient of a response equals the DDM's for R, E (and mu), and its
     gradient with respect to every nodal coordinate, projected on a design
     velocity, equals the DDM sensitivity to that shape parameter."""
     from signorini._jax import jnp
@@ -145,14 +251,15 @@ def test_adjoint_equals_ddm_in_3d():
     mesh = block(n=3)
     X = mesh.nodes
     V = 0.05 * X * (1.0 - X) * np.array([1.0, -0.5, 0.7])  # vanishes on the supports' planes
-    pb = hertz3d(mesh)
-    pb = sg.Problem(pb.mesh, pb.material, {**pb.params, "s": 0.0}, fixed=pb.fixed,
-                    contact=pb.contact, shape={"s": V})
     n_u = 3 * mesh.n_nodes
     response = lambda w, p, t: jnp.sum(w[:n_u] ** 2) + jnp.sum(w[n_u:]) * 1e-2
-    ddm = sg.gradient(pb, response, wrt=["R", "E", "s"], method=sg.DDM())
-    adj = sg.gradient(pb, response, wrt=["R", "E", "nodes"], method=sg.Adjoint())
-    for k in ("R", "E"):
-        assert adj.grad[k] == pytest.approx(ddm.grad[k], rel=1e-9)
-    assert adj.grad["nodes"].shape == (mesh.n_nodes, 3)
-    assert np.sum(adj.grad["nodes"] * V) == pytest.approx(ddm.grad["s"], rel=1e-8)
+    for pb, steps, names in ((hertz3d(mesh), 1, ["R", "E"]),
+                             (hertz3d_friction(mesh), 3, ["R", "E", "mu"])):
+        pb = sg.Problem(pb.mesh, pb.material, {**pb.params, "s": 0.0}, fixed=pb.fixed,
+                        contact=pb.contact, shape={"s": V})
+        ddm = sg.gradient(pb, response, wrt=names + ["s"], method=sg.DDM(), steps=steps)
+        adj = sg.gradient(pb, response, wrt=names + ["nodes"], method=sg.Adjoint(), steps=steps)
+        for k in names:
+            assert adj.grad[k] == pytest.approx(ddm.grad[k], rel=1e-9), k
+        assert adj.grad["nodes"].shape == (mesh.n_nodes, 3)
+        assert np.sum(adj.grad["nodes"] * V) == pytest.approx(ddm.grad["s"], rel=1e-8)

@@ -215,7 +215,9 @@ class Solution:
         """Per contact node: ``node, x_ref, x, gap, p_N, p_T, area`` and
         ``dp_N_d<name>``, ``dp_T_d<name>``, ``dgap_d<name>`` for every design parameter;
         with friction also ``status`` (``open``/``stick``/``slip``) and ``slip`` (g_T of
-        the increment)."""
+        the increment). In 3-D, p_T and slip have two components, in the basis
+        ``t1``, ``t2`` given with ``normal`` and the ``traction`` vector (each
+        (nc, 3), :meth:`_traction_vectors`)."""
         m = self.model
         s = self._surface(surface)
         val, sens = self._contact_fields(i, surface)
@@ -231,7 +233,18 @@ class Solution:
                                self.state_before(i)[0], surface)
             out["status"] = np.array([STATUS_NAMES[k] for k in np.asarray(st)])
             out["slip"] = np.asarray(gt)
+        if m.dim == 3:
+            out.update(self._traction_vectors(i, surface))
         return out
+
+    def _traction_vectors(self, i: int, surface: int) -> dict:
+        """3-D: ``normal`` n' (the obstacle's, into the body), the basis ``t1``, ``t2``
+        of the tangential tractions p_T and ``traction``, the contact force on the
+        body per reference area (what the supports balance), each (nc, 3)."""
+        inc = self._inc(i)
+        n, t1, t2, f = (np.asarray(a) for a in self.model.frames(
+            to_device(inc.w), self.jax_params, inc.t, self.state_before(i)[0], surface))
+        return {"normal": n, "t1": t1, "t2": t2, "traction": f}
 
     def _directions(self, i: int):
         """(w_dot (k, n_dof), unit tangents e) of increment i's sensitivities."""

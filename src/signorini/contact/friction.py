@@ -197,6 +197,11 @@ class Coulomb(ContactLawDefaults):
         on = closed & (tangential > 0) & (cp["mu"] > 0.0)
         return jnp.where(on, jnp.abs(lht) - rho, jnp.inf)
 
+    @staticmethod
+    def history_point(x, geo, obstacle):
+        """The node's history value at x: its slip coordinate s(x) on the obstacle."""
+        return obstacle.coordinate(x, geo)
+
     def slip(self, x, geo, obstacle, hist):
         """Slip increment g_T = s(x) - s_n of the current increment."""
         return obstacle.coordinate(x, geo) - self._hist(hist)[0]

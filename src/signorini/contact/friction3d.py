@@ -52,10 +52,12 @@ def reference_axis(N):
 class CoulombDisc(Coulomb):
     """Coulomb friction on a rigid 3-D obstacle (three multipliers per node).
 
-    The node's history is ``hist = (y_n (3,), e_S (3,), tangential[, case
-    flags])``: the closest point after the previous increment, the fixed axis
-    of its tangent basis and whether the node carries friction (0 where its
-    tangential motion is prescribed). Parameters as :class:`Coulomb`.
+    The node's history is ``hist = (y_n (3,), e_S (3,), tangential (2,)[,
+    case flags])``: the closest point after the previous increment, the fixed
+    axis of its tangent basis and which of the two tangential multipliers the
+    node carries (a component is 0 where the node's motion along it is
+    prescribed: a symmetry plane holds t2, an axis both; docs/theory.md §12.4).
+    Parameters as :class:`Coulomb`.
     """
 
     n_multipliers: int = field(default=3, init=False)
@@ -72,11 +74,12 @@ class CoulombDisc(Coulomb):
         return jnp.stack([t1 @ d, t2 @ d])
 
     def augmented(self, x, lam, geo, obstacle, cp, hist):
-        """(lam^_N, lam^_T (2,), g_N, g_T (2,)) of one node."""
-        y_n, e, _, _ = self._hist(hist)
+        """(lam^_N, lam^_T (2,), g_N, g_T (2,)) of one node; the components the
+        node does not carry (``tangential`` 0) are 0 in lam^_T."""
+        y_n, e, m, _ = self._hist(hist)
         g_n = obstacle.gap(x, geo)
         g_t = self.slip_vector(x, geo, obstacle, y_n, e)
-        return lam[0] + cp["eps_n"] * g_n, lam[1:] + cp["eps_t"] * g_t, g_n, g_t
+        return lam[0] + cp["eps_n"] * g_n, m * (lam[1:] + cp["eps_t"] * g_t), g_n, g_t
 
     def cases(self, x, lam, geo, obstacle, cp, hist):
         """(closed, stick) flags of one node: closed = lam^_N <= 0; stick =
@@ -88,15 +91,16 @@ class CoulombDisc(Coulomb):
         return closed, stick
 
     def potential(self, x, lam, A, geo, obstacle, cp, hist, rho, case):
-        """A_S l(x, lam; rho) at fixed rho and case flags."""
-        _, _, tangential, _ = self._hist(hist)
+        """A_S l(x, lam; rho) at fixed rho and case flags; a component the node
+        does not carry has l = -lam_Ti^2 / (2 eps_T) (its equation lam_Ti = 0)."""
+        _, _, m, _ = self._hist(hist)
         closed, stick = case
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, hist)
         l_n = (jnp.where(closed, lhn, 0.0) ** 2 - lam[0] ** 2) / (2.0 * cp["eps_n"])
         outside = jnp.where(stick, 0.0, _norm(lht) - rho)  # the distance from the disc
-        l_t = (lht @ lht - lam[1:] @ lam[1:] - outside**2) / (2.0 * cp["eps_t"])
-        l_fixed = -(lam[1:] @ lam[1:]) / (2.0 * cp["eps_t"])
-        return A * (l_n + jnp.where(tangential > 0, l_t, l_fixed))
+        lt = lam[1:]
+        l_t = (lht @ lht - lt @ (m * lt) - outside**2 - lt @ ((1.0 - m) * lt)) / (2.0 * cp["eps_t"])
+        return A * (l_n + l_t)
 
     def _flags(self, hist):
         return self._hist(hist)[3]
@@ -111,7 +115,7 @@ class CoulombDisc(Coulomb):
     def status(self, x, lam, A, geo, obstacle, cp, hist):
         """OPEN, STICK or SLIP by the branch the residual takes."""
         closed, stick = self.cases(x, lam, geo, obstacle, cp, hist)
-        stick = stick | (self._hist(hist)[2] <= 0)
+        stick = stick | jnp.all(self._hist(hist)[2] <= 0)
         return jnp.where(closed, jnp.where(stick, STICK, SLIP), OPEN)
 
     def stick_margin(self, x, lam, A, geo, obstacle, cp, hist):
@@ -119,8 +123,13 @@ class CoulombDisc(Coulomb):
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, hist)
         closed = lhn <= 0.0
         rho = -cp["mu"] * jnp.where(closed, lhn, 0.0)
-        on = closed & (self._hist(hist)[2] > 0) & (cp["mu"] > 0.0)
+        on = closed & jnp.any(self._hist(hist)[2] > 0) & (cp["mu"] > 0.0)
         return jnp.where(on, _norm(lht) - rho, jnp.inf)
+
+    @staticmethod
+    def history_point(x, geo, obstacle):
+        """The node's history value at x: its closest point y(x) on the obstacle."""
+        return obstacle.closest(x, geo)
 
     def slip(self, x, geo, obstacle, hist):
         y_n, e, _, _ = self._hist(hist)
@@ -128,6 +137,14 @@ class CoulombDisc(Coulomb):
 
     def row_scale(self, cp):
         return jnp.stack([cp["eps_n"], cp["eps_t"], cp["eps_t"]])
+
+
+def disc(method):
+    """The law a 3-D contact surface uses for ``method``: a 2-D :class:`Coulomb`
+    becomes the :class:`CoulombDisc` of the same parameters; others are kept."""
+    if isinstance(method, Coulomb) and not isinstance(method, CoulombDisc):
+        return CoulombDisc(mu=method.mu, eps_n=method.eps_n, eps_t=method.eps_t)
+    return method
 
 
 def _norm(v):

@@ -126,14 +126,17 @@ class Linearized:
         w = x - Y = u - c.
 
     A rigid translation of body and obstacle together therefore changes
-    neither (docs/theory.md §6.3).
+    neither (docs/theory.md §6.3). In 3-D the closest point (the history of the
+    Coulomb disc) is linearised in the body's reference tangent plane:
+    ``y(x) = y(Y) + grad y(Y) . (I - N N^T) w`` (docs/theory.md §12.4).
     """
 
     def __init__(self, base, X, N):
         self.base = base
         self.X = X
         self.N = N
-        self.T = jnp.array([-N[1], N[0]])
+        if N.shape[-1] == 2:
+            self.T = jnp.array([-N[1], N[0]])
 
     def _lin(self, f, x, geo, d):
         Y = self.X + geo["shift"]
@@ -145,6 +148,12 @@ class Linearized:
 
     def coordinate(self, x, geo):
         return self._lin(self.base.coordinate, x, geo, self.T)
+
+    def closest(self, x, geo):
+        Y = self.X + geo["shift"]
+        w = x - Y
+        val, dv = jax.jvp(lambda y: self.base.closest(y, geo), (Y,), (w - self.N * (self.N @ w),))
+        return val + dv
 
     def normal(self, x, geo):
         return self.base.normal(self.X + geo["shift"], geo)

@@ -63,7 +63,8 @@ class ModelContactNodes:
         if history and s.has_history:
             if state_n is None:
                 self._node_history(i, state_n)  # raises the error that names the missing state
-            hs = (np.asarray(state_n[1][i]), np.asarray(s.tangential, dtype=float))
+            hs = (np.asarray(state_n[1][i]),) + tuple(np.asarray(a, dtype=float)
+                                                      for a in s.history_data)
         items = (x, lam, np.asarray(A), XS, np.asarray(NS), hs)
         if hs is not None and cases is not None:
             items += (jax.tree_util.tree_map(np.asarray, cases[i]),)
@@ -82,8 +83,9 @@ class ModelContactNodes:
             k, s.nodes.size, s.n_mult)
         dhs = None
         if s.has_history:
-            dsn = np.zeros((k, s.nodes.size)) if state_dot_n is None else np.asarray(state_dot_n[1][i])
-            dhs = (dsn, np.zeros((k, s.nodes.size)))
+            shape = (k, s.nodes.size) + ((self.dim,) if self.dim == 3 else ())  # s_n or y_n
+            dsn = np.zeros(shape) if state_dot_n is None else np.asarray(state_dot_n[1][i])
+            dhs = (dsn,) + tuple(np.zeros((k,) + np.shape(a)) for a in s.history_data)
         return (dx, dlam, np.asarray(dA), dXS, np.asarray(dNS), dhs), (dgeo, dcp)
 
     def contact_jvp(self, name: str, outs: tuple, w, params, t, state_n, w_dot, e,

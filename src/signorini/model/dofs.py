@@ -9,11 +9,12 @@ prescribed twice, contact surfaces that share nodes or are not chains.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..contact.area import check_edges, contact_nodes, nodal_normals
+from ..contact.friction3d import disc, reference_axis
 from ..errors import InputError
 
 
@@ -27,7 +28,11 @@ class Surface:
     lam_offset: int  # first multiplier DOF
     n_mult: int
     dofs: np.ndarray  # (nc, dim + n_mult) DOFs of each contact element
-    tangential: np.ndarray | None  # (nc,) 1 where a friction node carries lam_T, else 0; None: no history
+    #: friction: which tangential multipliers each node carries, (nc,) in 2-D, (nc, 2)
+    #: in 3-D (1 where it does, 0 where its tangential motion is prescribed); None:
+    #: no history
+    tangential: np.ndarray | None
+    axes: np.ndarray | None = None  # 3-D friction: (nc, 3) the fixed axis e_S of each node's tangent basis
 
     @property
     def lam_dofs(self) -> np.ndarray:
@@ -36,6 +41,14 @@ class Surface:
     @property
     def has_history(self) -> bool:
         return self.tangential is not None
+
+    @property
+    def history_data(self) -> tuple:
+        """The per-node constants that follow the history value in a friction node's
+        ``hist``: (tangential,) in 2-D, (e_S, tangential) in 3-D."""
+        if self.axes is None:
+            return (self.tangential,)
+        return (self.axes, self.tangential)
 
 
 class DofLayout:
@@ -90,10 +103,7 @@ class DofLayout:
                 edges = mesh.face_set(c.edges)
                 if not len(edges):
                     raise InputError(f"contact face set {c.edges!r} is empty")
-                if c.method.has_history:
-                    raise InputError(f"contact {c.edges!r}: friction in a 3-D problem is not "
-                                     "available yet (the node law is, signorini.contact.friction3d); "
-                                     "use a frictionless method")
+                c = replace(c, method=disc(c.method))  # Coulomb: the Coulomb disc
             else:
                 edges = mesh.edge_set(c.edges)
                 check_edges(edges, c.edges)
@@ -115,8 +125,11 @@ class DofLayout:
             m = c.method.n_multipliers
             lam = off + np.arange(len(nodes) * m).reshape(len(nodes), m)
             dofs = np.concatenate([d * nodes[:, None] + np.arange(d), lam], axis=1)
-            tang = self._tangential_mask(c, mesh.nodes, edges, nodes, pres)
-            surfaces.append(Surface(c, edges, nodes, off, m, dofs, tang))
+            if d == 3:
+                tang, axes = self._tangential_mask_3d(c, mesh.nodes, edges, nodes, pres)
+            else:
+                tang, axes = self._tangential_mask(c, mesh.nodes, edges, nodes, pres), None
+            surfaces.append(Surface(c, edges, nodes, off, m, dofs, tang, axes))
             off += len(nodes) * m
         self.surfaces = tuple(surfaces)
         self.n_dof = off
@@ -137,6 +150,32 @@ class DofLayout:
                 if 2 * int(n) + c in pres and abs(N[k, 1 - c]) >= abs(N[k, c]):
                     mask[k] = 0.0  # |T_c| = |N_{1-c}|: prescribed component is tangential
         return mask
+
+    @staticmethod
+    def _tangential_mask_3d(contact, X, faces, nodes, pres):
+        """(mask (nc, 2), e_S (nc, 3)) of a 3-D friction surface, or (None, None).
+
+        A prescribed component c of a node is tangential when the axis e_c is
+        closer to the tangent plane than to the normal (|N_c| < 1/sqrt(2)). With
+        none, e_S is the axis least aligned with N and the node carries both
+        multipliers; with one (a symmetry plane), e_S = e_c, so that t2 (the
+        projection of e_c on the tangent plane) is the prescribed direction and
+        lam_T2 is dropped; with two or more (an axis), both are dropped
+        (docs/theory.md §12.4)."""
+        if not contact.method.has_history:
+            return None, None
+        N = np.asarray(nodal_normals(X, faces, nodes))
+        mask = np.ones((len(nodes), 2))
+        axes = np.zeros((len(nodes), 3))
+        for k, n in enumerate(nodes):
+            held = [c for c in range(3) if 3 * int(n) + c in pres and abs(N[k, c]) < 2 ** -0.5]
+            axes[k] = reference_axis(N[k])
+            if len(held) == 1:
+                axes[k] = np.eye(3)[held[0]]
+                mask[k, 1] = 0.0
+            elif held:
+                mask[k] = 0.0
+        return mask, axes
 
     def split(self, w):
         """w -> (u (n_nodes, dim), [lam_s (nc_s, m_s) per surface])."""

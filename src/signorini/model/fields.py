@@ -7,6 +7,7 @@ model's layout, kernels and compiled programs)."""
 from __future__ import annotations
 
 from .._jax import jax, jnp
+from ..contact.friction3d import tangent_basis
 
 
 class ModelFields:
@@ -24,6 +25,27 @@ class ModelFields:
         pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
             xs, ls, a, geo, self.obstacle_at(s, X0), cp))(x, lam, A, Xs)
         return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
+
+    def contact_frames(self, w, params, t, state_n, surface: int = 0):
+        """Pure function (3-D): per node of a surface (each (nc, 3)) the obstacle's
+        normal n' at the node, the tangent basis (t1, t2) of its tangential
+        multipliers, and the contact force on the body per reference area (the
+        node's contact residual rows, -r_x / A_S: what balances the supports;
+        with linearised kinematics along the body's reference normal)."""
+        s = self.surfaces[surface]
+        X = self.reference(params)
+        u, lams = self.split(w)
+        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
+        meth = s.contact.method
+        h = self._node_history(surface, state_n)
+
+        def frame(xs, ls, a, hs, X0):
+            ob = self.obstacle_at(s, X0)
+            n = ob.normal(xs, geo)
+            e = hs[1] if hs is not None else jnp.eye(3)[jnp.argmin(jnp.abs(X0[1]))]
+            r = meth.residual(xs, ls, a, geo, ob, cp, hs)
+            return (n,) + tangent_basis(n, e) + (-r[:3] / a,)
+        return jax.vmap(frame, (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
 
     def contact_status(self, w, params, t, state_n, surface: int = 0):
         """Pure function: per-node (status code, slip increment g_T) of a friction

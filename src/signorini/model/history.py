@@ -22,8 +22,9 @@ class ModelHistory:
     def update(self, w, params, t, state_n, part: str = "all"):
         """Pure history update after convergence at t (docs/theory.md §1, §3):
         (w, contact history, material history). Contact: the slip coordinate
-        s = s(x_S) of every node of a friction surface on the obstacle at t
-        (linearised obstacle in small-strain runs). Material: the return map at
+        s = s(x_S) (2-D) or the closest point y(x_S) (3-D) of every node of a
+        friction surface on the obstacle at t (linearised obstacle in
+        small-strain runs). Material: the return map at
         every Gauss point from the history of the previous increment
         (``part="contact"``: left out, None)."""
         contact = []
@@ -31,8 +32,8 @@ class ModelHistory:
             if not s.has_history:
                 contact.append(None)
                 continue
-            contact.append(jax.vmap(lambda xs, X0, s=s, geo=geo: self.obstacle_at(s, X0).coordinate(
-                xs, geo))(x, Xs))
+            contact.append(jax.vmap(lambda xs, X0, s=s, geo=geo: s.contact.method.history_point(
+                xs, geo, self.obstacle_at(s, X0)))(x, Xs))
         material = None
         if self.n_state and part == "all":
             material = self._elements(w, params, state_n, tangent=False)[1]

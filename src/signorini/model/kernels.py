@@ -183,6 +183,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             update=self._update_eager,
             switch_fields=program(self.switch_fields, "switch_fields"),
             stiffness=self._element_stiffness_eager)
+        self.frames = program(self.contact_frames, "frames", static_argnums=4)
         self._reference = program(self._reference_impl, "reference")
         self.prescribed_at = program(self.prescribed_values, "prescribed")  # one program, not an op per Fixed
         self._update_contact_jvp = program(jax.vmap(
@@ -264,8 +265,9 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         return s.contact.obstacle
 
     def _node_history(self, i: int, state_n, cases=None):
-        """Per-node history input of surface i for ``method.residual``: None, or
-        (s_n (nc,), tangential mask (nc,)[, case flags]) for friction surfaces."""
+        """Per-node history input of surface i for ``method.residual``: None, or for
+        friction surfaces (s_n (nc,), tangential mask (nc,)[, case flags]) in 2-D,
+        (y_n (nc, 3), e_S (nc, 3), tangential mask (nc, 2)[, case flags]) in 3-D."""
         s = self.surfaces[i]
         if not s.has_history:
             return None
@@ -274,7 +276,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
                 f"contact surface {s.contact.edges!r} has friction, which needs the history "
                 "state_n = (w_n, contact history, material history); start from "
                 "model.initial_state(w, params)")
-        h = (state_n[1][i], jnp.asarray(s.tangential))
+        h = (state_n[1][i],) + tuple(jnp.asarray(a) for a in s.history_data)
         return h if cases is None else h + (cases[i],)
 
     def _material_history(self, state_n):
