@@ -103,15 +103,15 @@ def test_a_3d_solution_writes_vtu(tmp_path):
     assert "dp_N_dR" in m.point_data and m.cell_data["cauchy_stress"][0].shape[1] == 9
 
 
-def test_what_3d_does_not_take_yet_is_named():
+def test_bad_3d_input_is_named():
     mesh = block(n=3)
     with pytest.raises(sg.InputError, match="kinematics need a 2-D mesh"):
         sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, kinematics=sg.Axisymmetric())
     with pytest.raises(sg.InputError, match="component must be one of \\[0, 1, 2\\]"):
         sg.solve(sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, fixed=[sg.Fixed("z0", 3)]))
-    with pytest.raises(sg.InputError, match="boundary loads .* 3-D body are not available yet"):
+    with pytest.raises(sg.InputError, match="unknown face set 'top'"):
         sg.solve(sg.Problem(mesh, sg.LinearElastic(E=1.0, nu=0.3), {}, fixed=[sg.Fixed("z0", 2)],
-                            loads=[sg.Pressure("z1", 1.0)]))
+                            loads=[sg.Pressure("top", 1.0)]))
 
 
 MU = 0.1
@@ -263,3 +263,33 @@ def test_adjoint_equals_ddm_in_3d():
             assert adj.grad[k] == pytest.approx(ddm.grad[k], rel=1e-9), k
         assert adj.grad["nodes"].shape == (mesh.n_nodes, 3)
         assert np.sum(adj.grad["nodes"] * V) == pytest.approx(ddm.grad["s"], rel=1e-8)
+
+
+@pytest.mark.parametrize("tets", [False, True])
+def test_face_loads_give_the_uniform_stress(tets):
+    """A pressure q on the top of a graded block (held by its symmetry planes and
+    base) and a traction on a side: the uniform stress sigma_zz = -q, sigma_xz =
+    tau to round-off, and the loads' resultants are the given ones."""
+    g = graded_coordinates(1.0, 0.3, 3, 1.4)
+    m = box(g, 0.5 * g, 2.0 * g)
+    if tets:
+        m = tetrahedra(m)
+    q = 3.0
+    pb = sg.Problem(m, sg.LinearElastic(E=100.0, nu=0.3), {"q": q},
+                    fixed=[sg.Fixed("z0", 2), sg.Fixed("x0", 0), sg.Fixed("y0", 1)],
+                    loads=[sg.Pressure("z1", "q")])
+    sol = sg.solve(pb)
+    s, _ = sol.stress()
+    expect = np.zeros((3, 3))
+    expect[2, 2] = -q
+    assert np.allclose(s, expect, rtol=0, atol=1e-12 * q)
+    assert sol.reactions()[:, 2].sum() == pytest.approx(q * 1.0 * 0.5, rel=1e-12)
+    # a resultant: the force over the face's reference area
+    pb = sg.Problem(m, sg.LinearElastic(E=100.0, nu=0.3), {"F": 0.2},
+                    fixed=[sg.Fixed("z0", k) for k in range(3)],
+                    loads=[sg.Traction("z1", (0.0, "F", 0.0), resultant=True)])
+    assert sg.solve(pb).reactions()[:, 1].sum() == pytest.approx(-0.2, rel=1e-12)
+    with pytest.raises(sg.InputError, match="3-D body needs 3 components"):
+        sg.solve(sg.Problem(m, sg.LinearElastic(E=1.0, nu=0.3), {},
+                            fixed=[sg.Fixed("z0", k) for k in range(3)],
+                            loads=[sg.Traction("z1", (0.0, 1.0))]))

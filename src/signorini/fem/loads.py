@@ -16,6 +16,7 @@ import numpy as np
 
 from .._jax import jax, jnp
 from .kinematics import PLANE_STRAIN
+from .solid import face_integrals
 from ..params import Spec, resolve
 from ..errors import InputError
 
@@ -45,7 +46,8 @@ class Fixed:
 
 @dataclass(frozen=True)
 class Pressure:
-    """Uniform nominal pressure on an edge set (dead load, reference normal).
+    """Uniform nominal pressure on an edge set, or a face set of a 3-D body
+    (dead load, reference normal).
 
     Positive pressure pushes into the body. With ``resultant=True`` the value is
     the resultant force (per unit thickness) and the pressure is value / length
@@ -60,12 +62,18 @@ class Pressure:
         return (self.value,)
 
     def nodal_forces(self, X, edges: np.ndarray, params, t, kinematics=PLANE_STRAIN):
-        """(n_edges, 2 ends, 2) consistent nodal forces of the load at t."""
+        """(n_edges, 2 ends, 2) consistent nodal forces of the load at t; on a 3-D
+        body ``edges`` are faces and the forces (n_faces, k, 3)."""
+        q = resolve(self.value, params) * self.ramp(t)
+        if X.shape[-1] == 3:
+            wts, nda = face_integrals(X, edges)
+            if self.resultant:
+                q = q / jnp.sum(wts)
+            return -q * nda
         d = X[edges[:, 1]] - X[edges[:, 0]]
         L = jnp.linalg.norm(d, axis=1)
         n = jnp.stack([d[:, 1], -d[:, 0]], axis=1) / L[:, None]  # outward unit normal
         wts = _edge_weights(X, edges, kinematics)  # (n_edges, 2): int N_a dA
-        q = resolve(self.value, params) * self.ramp(t)
         if self.resultant:
             q = q / jnp.sum(wts)  # value / loaded area
         return -q * wts[:, :, None] * n[:, None, :]
@@ -73,7 +81,8 @@ class Pressure:
 
 @dataclass(frozen=True)
 class Traction:
-    """Uniform nominal traction vector on an edge set (dead load).
+    """Uniform nominal traction vector on an edge set, or a face set of a 3-D
+    body (dead load; then three components).
 
     With ``resultant=True`` the value is the resultant force vector.
     """
@@ -85,16 +94,20 @@ class Traction:
     def __post_init__(self):
 
         v = self.value
-        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__") or len(v) != 2:
-            raise InputError(f"Traction({self.edges!r}): value must be a pair (t_x, t_y) of numbers "
-                             f"or parameter names, got {v!r}; for a normal load use Pressure")
+        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__") or len(v) not in (2, 3):
+            raise InputError(f"Traction({self.edges!r}): value must be a pair (t_x, t_y) (a 3-D "
+                             f"body: a triple) of numbers or parameter names, got {v!r}; for a "
+                             "normal load use Pressure")
         object.__setattr__(self, "value", tuple(v))
 
     def specs(self):
         return tuple(self.value)
 
     def nodal_forces(self, X, edges: np.ndarray, params, t, kinematics=PLANE_STRAIN):
-        wts = _edge_weights(X, edges, kinematics)
+        if len(self.value) != X.shape[-1]:
+            raise InputError(f"Traction({self.edges!r}): a {X.shape[-1]}-D body needs "
+                             f"{X.shape[-1]} components, got {len(self.value)}")
+        wts = face_integrals(X, edges)[0] if X.shape[-1] == 3 else _edge_weights(X, edges, kinematics)
         tr = jnp.stack([jnp.asarray(resolve(v, params), dtype=float) for v in self.value]) * self.ramp(t)
         if self.resultant:
             tr = tr / jnp.sum(wts)

@@ -265,6 +265,27 @@ def element_yield_ratio(ue, Xe, material, mp, hn, cell=HEXAHEDRON, formulation=S
     return jax.vmap(lambda h, hs: material.yield_ratio(h, hs, mp))(H, _history(cell, hn))
 
 
+def face_integrals(X, faces: np.ndarray):
+    """(w (f, k), a (f, k, 3)): per face and face node, int_f N_a dA and
+    int_f N_a n dA (n: the unit normal of the face's node order, outward for the
+    face sets of a mesh) on the reference surface: the consistent nodal weights
+    of a uniform traction and of a uniform pressure (docs/theory.md §12.5)."""
+    xp = np if isinstance(X, np.ndarray) else jnp
+    Xf = X[np.asarray(faces)]  # (f, k, 3)
+    if faces.shape[1] == 3:
+        na = 0.5 * xp.cross(Xf[:, 1] - Xf[:, 0], Xf[:, 2] - Xf[:, 0])  # n dA of the triangle
+        w = xp.repeat(xp.linalg.norm(na, axis=1)[:, None] / 3.0, 3, axis=1)
+        return w, xp.repeat(na[:, None, :] / 3.0, 3, axis=1)
+    if faces.shape[1] != 4:
+        raise InputError(f"faces must be triangles or quadrilaterals, got {faces.shape[1]} "
+                         "nodes per face")
+    # the face's bilinear map at the Q4's 2x2 Gauss points (its unit weights)
+    J = xp.einsum("gak,fai->fgki", DN_PARENT, Xf)  # (f, g, 2, 3): dX/dxi, dX/deta
+    nda = xp.cross(J[:, :, 0], J[:, :, 1])  # (f, g, 3): n dA
+    w = xp.einsum("fg,ga->fa", xp.linalg.norm(nda, axis=-1), N_PARENT)
+    return w, xp.einsum("fgi,ga->fai", nda, N_PARENT)
+
+
 def face_areas(X, faces: np.ndarray, nodes: np.ndarray | None = None):
     """A_S (n_contact,) = sum over the faces f of the set of int_f N_S dA, on the
     reference surface (docs/theory.md §12.5): a third of each triangle's area, or
@@ -279,19 +300,11 @@ def face_areas(X, faces: np.ndarray, nodes: np.ndarray | None = None):
     faces = np.asarray(faces)
     if nodes is None:
         nodes = np.unique(faces.ravel())
-    xp = np if isinstance(X, np.ndarray) else jnp
-    Xf = X[faces]  # (f, k, 3)
-    if faces.shape[1] == 3:
-        a = 0.5 * xp.linalg.norm(xp.cross(Xf[:, 1] - Xf[:, 0], Xf[:, 2] - Xf[:, 0]), axis=1)
-        per_node = xp.repeat(a[:, None] / 3.0, 3, axis=1)
-    elif faces.shape[1] == 4:
-        # the face's bilinear map at the Q4's 2x2 Gauss points (its unit weights)
-        J = xp.einsum("gak,fai->fgki", DN_PARENT, Xf)  # (f, g, 2, 3): dX/dxi, dX/deta
-        dA = xp.linalg.norm(xp.cross(J[:, :, 0], J[:, :, 1]), axis=-1)  # (f, g)
-        per_node = xp.einsum("fg,ga->fa", dA, N_PARENT)
-    else:
+    if faces.shape[1] not in (3, 4):
         raise InputError(f"contact faces must be triangles or quadrilaterals, got {faces.shape[1]} "
                          "nodes per face")
+    xp = np if isinstance(X, np.ndarray) else jnp
+    per_node = face_integrals(X, faces)[0]
     pos = np.searchsorted(nodes, faces)
     if xp is np:
         out = np.zeros(len(nodes))

@@ -39,8 +39,8 @@ class ModelGeometry:
         """(n_dof,) consistent nodal forces of all loads at load factor t."""
         f = jnp.zeros(self.n_dof)
         for load, edges in zip(self.problem.loads, self.load_edges):
-            fe = load.nodal_forces(X, edges, params, t, self.kinematics)  # (n_edges, 2, 2)
-            d = np.stack([2 * edges, 2 * edges + 1], axis=-1)
+            fe = load.nodal_forces(X, edges, params, t, self.kinematics)  # (n_edges, k, dim)
+            d = self.dim * edges[..., None] + np.arange(self.dim)
             f = f.at[d.ravel()].add(fe.ravel())
         return f
 

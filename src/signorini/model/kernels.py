@@ -116,10 +116,8 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         self.formulation = p.resolved_formulation()
         self.material = p.material
         self.n_state = int(p.material.n_state)
-        if self.dim == 3 and p.loads:
-            raise InputError("boundary loads (Pressure, Traction) on a 3-D body are not available "
-                             "yet; prescribe displacements (Fixed) or move an obstacle instead")
-        self.load_edges = [p.mesh.edge_set(l.edges) for l in p.loads]
+        self.load_edges = [p.mesh.face_set(l.edges) if self.dim == 3 else p.mesh.edge_set(l.edges)
+                           for l in p.loads]  # noqa: E741
         finite = p.material.finite_strain
         self.linear_contact = [
             c.kinematics == "linear" or (c.kinematics == "auto" and not finite) for c in p.contact]
