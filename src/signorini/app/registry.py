@@ -16,6 +16,7 @@ from types import ModuleType
 COMMANDS = {
     "hertz": "signorini.app.commands.hertz",
     "hertz-friction": "signorini.app.commands.hertz_friction",
+    "hertz3d": "signorini.app.commands.hertz3d",
     "forging": "signorini.app.commands.forging",
     "optimize-forging": "signorini.app.commands.optimize_forging",
     "sweep": "signorini.app.commands.sweep",
@@ -25,7 +26,7 @@ COMMANDS = {
 
 #: the commands that write figures and VTU files (the ``signorini`` entry point
 #: starts their output helper before anything else: :func:`signorini.post.helper.start`)
-OUTPUT_HELPER = ("hertz", "hertz-friction", "forging")
+OUTPUT_HELPER = ("hertz", "hertz-friction", "hertz3d", "forging")
 
 #: the commands a sweep can run at every point
 SWEEPABLE = tuple(n for n in COMMANDS if n not in ("sweep", "cache"))

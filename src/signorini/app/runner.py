@@ -226,8 +226,10 @@ def adjoint_report(out: Path, sol, response, names, description: str, solver, dd
     g = grad.pop("nodes")
     sol.shape_gradient = g
     X = sol.reference()
-    io.write_csv(out / "shape_gradient.csv", {"node": np.arange(len(X)), "X": X[:, 0], "Y": X[:, 1],
-                                              "dG_dX": g[:, 0], "dG_dY": g[:, 1]})
+    axes = "XYZ"[: X.shape[1]]
+    io.write_csv(out / "shape_gradient.csv", {"node": np.arange(len(X)),
+                                              **{a: X[:, k] for k, a in enumerate(axes)},
+                                              **{f"dG_d{a}": g[:, k] for k, a in enumerate(axes)}})
     rel = {n: abs(grad[n] - ddm[n]) / abs(ddm[n]) if ddm[n] else abs(grad[n]) for n in names}
     log.info("adjoint gradient of %s: one backward pass in %.2f s; max |adjoint - DDM| / |DDM| = %.2g",
              description, t, max(rel.values()))

@@ -25,7 +25,8 @@ def _vec3(a):
 def write_vtu(solution, path, i: int = -1) -> Path:
     """Write one increment as VTU: displacement, contact tractions and gap (point
     data; with friction also ``contact_status`` 0 open / 1 stick / 2 slip and
-    ``slip_increment``), Cauchy stress (cell data), and the sensitivity of each
+    ``slip_increment``; in 3-D the contact force vector ``traction`` and two
+    components of p_T and of the slip, in each node's tangent basis), Cauchy stress (cell data), and the sensitivity of each
     of them with respect to every design parameter (``d<field>_d<name>``); the
     switch points of the increment (docs/theory.md §11: point data ``switch`` 1
     weakly active, 2 stick/slip switch; cell data ``plastic_switch``) and, on
@@ -42,8 +43,9 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     for k in range(len(m.surfaces)):
         c = solution.contact(i, k)
         tag = "" if k == 0 else f"_{k}"
-        for key in ["p_N", "p_T", "gap"] + [f for f in c if f.startswith(("dp_", "dgap_"))]:
-            arr = np.zeros(m.n_nodes)
+        keys = ["p_N", "p_T", "gap"] + [f for f in c if f.startswith(("dp_", "dgap_"))]
+        for key in keys + (["traction"] if "traction" in c else []):  # 3-D: the force vector
+            arr = np.zeros((m.n_nodes,) + np.shape(c[key])[1:])
             arr[c["node"]] = c[key]
             point[key + tag] = arr
         if "status" in c:  # friction: 0 open, 1 stick, 2 slip; -1 off the contact surface
@@ -51,7 +53,7 @@ def write_vtu(solution, path, i: int = -1) -> Path:
             code = -np.ones(m.n_nodes)
             code[c["node"]] = [STATUS_NAMES.index(v) for v in c["status"]]
             point["contact_status" + tag] = code
-            slip = np.zeros(m.n_nodes)
+            slip = np.zeros((m.n_nodes,) + np.shape(c["slip"])[1:])
             slip[c["node"]] = c["slip"]
             point["slip_increment" + tag] = slip
     inc = solution.increments[i]
