@@ -169,6 +169,12 @@ def _points(Xe, cell: CellType):
     return dNdX, cell.weights * detJ
 
 
+def cell_volume(Xe, cell=None):
+    """The volume of a cell with nodal positions Xe (its Gauss rule; exact for
+    a hexahedron whose faces are plane, and for a tetrahedron)."""
+    return jnp.sum(_points(Xe, _cell(cell or HEXAHEDRON))[1])
+
+
 def gauss_gradients(ue, Xe, cell: CellType, formulation=STANDARD):
     """Displacement gradients (g, 3, 3) seen by the material (Hbar for F-bar)
     and the volume weights (g,)."""

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .._jax import jax, jnp
 from ..contact.area import check_edges, contact_nodes, nodal_normals
 from ..contact.friction3d import disc, reference_axis
 from ..errors import InputError
@@ -126,7 +127,7 @@ class DofLayout:
             lam = off + np.arange(len(nodes) * m).reshape(len(nodes), m)
             dofs = np.concatenate([d * nodes[:, None] + np.arange(d), lam], axis=1)
             if d == 3:
-                tang, axes = self._tangential_mask_3d(c, mesh.nodes, edges, nodes, pres)
+                tang, axes = self._tangential_mask_3d(c, mesh.nodes, edges, nodes, pres, problem.params)
             else:
                 tang, axes = self._tangential_mask(c, mesh.nodes, edges, nodes, pres), None
             surfaces.append(Surface(c, edges, nodes, off, m, dofs, tang, axes))
@@ -152,24 +153,35 @@ class DofLayout:
         return mask
 
     @staticmethod
-    def _tangential_mask_3d(contact, X, faces, nodes, pres):
+    def _tangential_mask_3d(contact, X, faces, nodes, pres, params):
         """(mask (nc, 2), e_S (nc, 3)) of a 3-D friction surface, or (None, None).
 
-        A prescribed component c of a node is tangential when the axis e_c is
-        closer to the tangent plane than to the normal (|N_c| < 1/sqrt(2)). With
-        none, e_S is the axis least aligned with N and the node carries both
-        multipliers; with one (a symmetry plane), e_S = e_c, so that t2 (the
-        projection of e_c on the tangent plane) is the prescribed direction and
-        lam_T2 is dropped; with two or more (an axis), both are dropped
-        (docs/theory.md §12.4)."""
+        Directions are judged against the obstacle's normal n0 at each node's
+        reference position at t = 0 and the problem's parameter values (not the
+        body's normal: a lateral face may fold onto a die). A prescribed
+        component c of a node is tangential when the axis e_c is closer to the
+        tangent plane than to n0 (|n0_c| < 1/sqrt(2)). With none, e_S is the axis
+        least aligned with n0 and the node carries both multipliers; with one (a
+        symmetry plane), e_S = e_c, so that t2 (the projection of e_c on the
+        tangent plane) is the prescribed direction and lam_T2 is dropped; with two
+        or more (an axis), both are dropped (docs/theory.md §12.4). e_S is a
+        property of the mesh and the nominal problem: it does not move with a
+        perturbed parameter."""
         if not contact.method.has_history:
             return None, None
-        N = np.asarray(nodal_normals(X, faces, nodes))
+        try:
+            geo = contact.obstacle.geometry(params, 0.0)
+            n0 = np.asarray(jax.vmap(lambda x: contact.obstacle.normal(x, geo))(
+                jnp.asarray(X[nodes], dtype=float)))
+            if not np.all(np.isfinite(n0)):
+                raise ValueError
+        except Exception:  # noqa: BLE001  (bad names or values: the model's checks say which)
+            n0 = -np.asarray(nodal_normals(X, faces, nodes))
         mask = np.ones((len(nodes), 2))
         axes = np.zeros((len(nodes), 3))
         for k, n in enumerate(nodes):
-            held = [c for c in range(3) if 3 * int(n) + c in pres and abs(N[k, c]) < 2 ** -0.5]
-            axes[k] = reference_axis(N[k])
+            held = [c for c in range(3) if 3 * int(n) + c in pres and abs(n0[k, c]) < 2 ** -0.5]
+            axes[k] = reference_axis(n0[k])
             if len(held) == 1:
                 axes[k] = np.eye(3)[held[0]]
                 mask[k, 1] = 0.0
