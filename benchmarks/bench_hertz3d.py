@@ -8,6 +8,8 @@ filled by the rows before it (the first row of a table pays the compilation):
   more with ``--sizes``), ``--no-fd``; columns: DOFs, Newton iterations, wall
   time, peak memory, solve / sensitivity share, p0 against Hertz, and the RMS
   of Dp/DR - Hertz's over the nodes with r < 0.7 a, relative to |Dp/DR(0)|.
+* ``solvers`` (``--solver-sizes``): the same frictionless runs with ``--solver
+  pardiso`` and ``--solver amg`` (time, peak memory, Newton iterations).
 * ``friction``: mu = 0.3, 10 increments, the 3-D model and ``--axisymmetric``
   at the same grid lines (``--n-fine`` 4, 8, 12): the differences between the
   two models along the x axis (p_N and the radial traction, off the axis,
@@ -17,6 +19,7 @@ Writes ``results/hertz3d_frictionless.csv`` and ``results/hertz3d_friction.csv``
 (or ``--out-dir``) and prints both tables. Usage::
 
     python3 benchmarks/bench_hertz3d.py [--sizes 6 8 12 16] [--friction-sizes 4 8 12]
+                                        [--solver-sizes 12 16 24]
 """
 
 from __future__ import annotations
@@ -78,6 +81,21 @@ def frictionless(sizes, work: Path) -> list[dict]:
     return rows
 
 
+def solvers(sizes, work: Path) -> list[dict]:
+    """The direct (PARDISO) and the iterative (AMG-GMRES) solver at the same sizes."""
+    rows = []
+    for n in sizes:
+        for solver in ("pardiso", "amg"):
+            r = run(["--n-fine", str(n), "--no-fd", "--solver", solver], work / f"s{n}{solver}")
+            s, t = r["summary"], r["summary"].get("timings", {})
+            rows.append({"n_fine": n, "solver": solver, "dofs": s["mesh"]["dofs"],
+                         "newton_its": sum(s["newton_iterations"]), "wall_s": round(r["wall_s"], 1),
+                         "peak_MB": round(r["peak_MB"]), "solve_s": round(t.get("solve_s", 0.0), 1),
+                         "sensitivities_s": round(t.get("sensitivities_s", 0.0), 1),
+                         "p0": f"{s['p0']['computed']:.8f}"})
+    return rows
+
+
 def friction(sizes, work: Path) -> list[dict]:
     rows = []
     for n in sizes:
@@ -106,6 +124,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="*", default=[6, 8, 12, 16])
     ap.add_argument("--friction-sizes", type=int, nargs="*", default=[4, 8, 12])
+    ap.add_argument("--solver-sizes", type=int, nargs="*", default=[],
+                    help="n_fine of a table of the direct against the iterative solver")
     ap.add_argument("--out-dir", type=Path, default=Path(__file__).resolve().parent / "results")
     a = ap.parse_args()
     a.out_dir.mkdir(parents=True, exist_ok=True)
@@ -114,6 +134,9 @@ def main() -> None:
         if a.sizes:
             print("hertz3d, frictionless (whole process, --no-fd)")
             report(frictionless(a.sizes, work), a.out_dir / "hertz3d_frictionless.csv")
+        if a.solver_sizes:
+            print("hertz3d, frictionless: PARDISO against AMG-GMRES (whole process, --no-fd)")
+            report(solvers(a.solver_sizes, work), a.out_dir / "hertz3d_solvers.csv")
         if a.friction_sizes:
             print("hertz3d, mu = 0.3: the 3-D and the axisymmetric models")
             report(friction(a.friction_sizes, work), a.out_dir / "hertz3d_friction.csv")

@@ -24,7 +24,7 @@ from .. import timing
 from .._jax import to_device
 from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
-from ..linsolve import REFINE_TOL, Pardiso, TangentSolver, get_solver, openblas_single_thread
+from ..linsolve import Pardiso, TangentSolver, for_model, get_solver, openblas_single_thread
 from ..model.identity import structure_key
 from ..model.kernels import Model
 from ..model import checks
@@ -223,16 +223,16 @@ def kept_solver(model: Model, solver, stack: contextlib.ExitStack):
     solve, another thread), others get a fresh instance. A solver object is used
     as given."""
     if not isinstance(solver, str):
-        return get_solver(solver)
+        return for_model(get_solver(solver), model)
     key = ("solver", solver)
     kept = model.cache.get(key)
     if kept is None:
         kept = model.cache[key] = (get_solver(solver), threading.Lock())
     instance, lock = kept
     if not lock.acquire(blocking=False):
-        return get_solver(solver)
+        return for_model(get_solver(solver), model)
     stack.callback(lock.release)
-    return instance
+    return for_model(instance, model)
 
 
 def _solve(problem, steps, sensitivities, options, solver, label, initial, ddm_factorization,
@@ -474,7 +474,7 @@ class _LoadPath:
         if fac is not None:
             t1 = time.perf_counter()
             w_dot, timing = back_substitute(fac, or_none=reused)
-            if reused and (w_dot is None or fac.backward_error > REFINE_TOL):
+            if reused and (w_dot is None or fac.backward_error > fac.refine_tol):
                 w_dot, reused = None, False  # failed or short of a fresh solve: factorise
         if w_dot is None:
             try:

@@ -25,7 +25,7 @@ from .._jax import jax, jnp
 from ..contact.uzawa import UzawaPenalty
 from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError
-from ..linsolve import TangentSolver, get_solver
+from ..linsolve import TangentSolver, for_model, get_solver
 from .newton import NewtonOptions, StepFailure, StepLog, newton
 from ..params import as_jax, check_names, unit_tangents
 from .stepping import ddm_for, model_for
@@ -95,7 +95,7 @@ def solve_uzawa(problem, *, steps: int = 1, wrt: Sequence[str] = (),
     check_names(names, problem.params, "wrt")
     params = as_jax(problem.params)
     model.check(problem.params)
-    loop = _OuterLoop(model, names, params, TangentSolver(get_solver(solver), symmetric_candidate=False),
+    loop = _OuterLoop(model, names, params, TangentSolver(for_model(get_solver(solver), model), symmetric_candidate=False),
                       options, tol, max_outer)  # the general LU
     out = loop.out
     for n_inc in range(1, steps + 1):

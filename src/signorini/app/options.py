@@ -169,9 +169,10 @@ def coarse_start_option(p):
 
 
 def solver_options(p):
-    p.add_argument("--solver", default="auto", choices=["auto", "pardiso", "superlu", "umfpack"],
-                   help="sparse direct solver; auto (default) = the fastest installed: pardiso "
-                        "(MKL, installed with signorini on x86-64), else superlu (SciPy)")
+    p.add_argument("--solver", default="auto", choices=["auto", "pardiso", "superlu", "umfpack", "amg"],
+                   help="linear solver; auto (default) = the fastest direct one installed: pardiso "
+                        "(MKL, installed with signorini on x86-64), else superlu (SciPy); amg = "
+                        "GMRES with algebraic multigrid (iterative, for large 3-D problems)")
     p.add_argument("--force-size", action="store_true",
                    help="run even if the estimated memory exceeds what is available")
     verbosity_options(p)

@@ -1,4 +1,4 @@
-"""Direct linear solvers behind one small interface.
+"""Linear solvers behind one small interface.
 
 ``get_solver(name).factorize(K, symmetric=...)`` returns a factor with
 ``solve(b)`` (b of shape (n,) or (n, k)); the same factorisation serves Newton
@@ -20,7 +20,10 @@ Backends (``solver=`` of :func:`signorini.solve`, ``--solver`` of the CLI):
   not expose a reusable symbolic factorisation; symmetric tangents use the
   symmetric-mode ordering of A + A^T.
 * ``umfpack`` -- through ``scikit-umfpack``, if installed.
-* ``auto`` (the default) -- the fastest one installed: pardiso, else superlu.
+* ``amg`` -- iterative: flexible GMRES preconditioned by algebraic multigrid
+  (pyamg) on the displacements and the contact multipliers' Schur complement
+  node by node (:mod:`signorini.linsolve.iterative`), for large 3-D problems.
+* ``auto`` (the default) -- the fastest direct one installed: pardiso, else superlu.
 """
 
 from .base import LinearSolver
@@ -28,15 +31,16 @@ from .factor import REFINE_STEPS, REFINE_TOL, Factor, diagonal
 from .memory import GB, available_memory, check_size, estimated_peak_memory
 from .mkl import mkl_max_threads, mkl_threads, openblas_single_thread
 from .pardiso import Pardiso
+from .iterative import AMGKrylov
 from .select import (
-    AUTO_ORDER, SOLVERS, SYMMETRY_TOL, TangentSolver, available, blocks_symmetric, get_solver,
-    is_symmetric)
+    AUTO_ORDER, SOLVERS, SYMMETRY_TOL, TangentSolver, available, blocks_symmetric, for_model,
+    get_solver, is_symmetric)
 from .superlu import SuperLU
 from .umfpack import Umfpack
 
 __all__ = [
-    "AUTO_ORDER", "GB", "REFINE_STEPS", "REFINE_TOL", "SOLVERS", "SYMMETRY_TOL", "Factor",
+    "AMGKrylov", "AUTO_ORDER", "GB", "REFINE_STEPS", "REFINE_TOL", "SOLVERS", "SYMMETRY_TOL", "Factor",
     "LinearSolver", "Pardiso", "SuperLU", "TangentSolver", "Umfpack", "available",
     "available_memory", "blocks_symmetric", "check_size", "diagonal", "estimated_peak_memory",
-    "get_solver", "is_symmetric", "mkl_max_threads", "mkl_threads", "openblas_single_thread",
+    "for_model", "get_solver", "is_symmetric", "mkl_max_threads", "mkl_threads", "openblas_single_thread",
 ]

@@ -47,6 +47,9 @@ class Factor:
         self.backward_error = 0.0  # of the last solve (worst column)
         self.relative_residual = 0.0  # max over columns of ||K x - b|| / ||b|| of the last solve
         self.nbytes: int | None = None  # memory of the factors, where the solver reports it
+        #: backward error below which a solve is not refined (an iterative backend's is
+        #: its own tolerance's, not round-off)
+        self.refine_tol = REFINE_TOL
 
     def row_scale(self) -> None:
         """Compute now the row scale the check of a solve will use (it is kept)."""
@@ -121,7 +124,7 @@ class Factor:
             np.abs(r, out=ratio)
             ratio /= den
             eta = float(np.max(ratio, initial=0.0))
-            if eta <= REFINE_TOL:
+            if eta <= self.refine_tol:
                 break
         return eta
 
@@ -141,7 +144,7 @@ class Factor:
             self.relative_residual = self._transposed.relative_residual
             return x
         x = self._solve_refined(b, transpose)
-        if self.backward_error > REFINE_TOL and self._refactor is not None:
+        if self.backward_error > self.refine_tol and self._refactor is not None:
             self._solve, self._refactor = self._refactor(), None
             x = self._solve_refined(b, transpose)
         return x
@@ -161,7 +164,7 @@ class Factor:
         r = residual(x)
         eta = self._backward_error(r, x, b, transpose)
         for _ in range(REFINE_STEPS):
-            if eta <= REFINE_TOL:
+            if eta <= self.refine_tol:
                 break
             x_new = x + step(r)
             self.refinements += 1

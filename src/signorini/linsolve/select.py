@@ -13,6 +13,7 @@ from .._memo import ObjectMemo
 from ..errors import InputError
 from .base import LinearSolver
 from .factor import Factor
+from .iterative import AMGKrylov
 from .pardiso import Pardiso
 from .superlu import SuperLU
 from .umfpack import Umfpack
@@ -20,7 +21,7 @@ from .umfpack import Umfpack
 log = logging.getLogger("signorini")
 
 
-SOLVERS = {"superlu": SuperLU, "umfpack": Umfpack, "pardiso": Pardiso}
+SOLVERS = {"superlu": SuperLU, "umfpack": Umfpack, "pardiso": Pardiso, "amg": AMGKrylov}
 
 #: the order in which ``auto`` tries the backends (fastest first)
 AUTO_ORDER = ("pardiso", "superlu")
@@ -79,6 +80,15 @@ def get_solver(name_or_solver="auto") -> LinearSolver:
         raise InputError(f"unknown linear solver {name_or_solver!r}; choose from "
                          f"{['auto'] + sorted(SOLVERS)}") from None
     return cls()
+
+
+def for_model(solver: LinearSolver, model) -> LinearSolver:
+    """``solver``, told the structure of ``model``'s tangent if it needs it (the
+    iterative solver: which rows are displacements and multipliers of which node)."""
+    bind = getattr(solver, "bind", None)
+    if callable(bind):
+        bind(model)
+    return solver
 
 
 #: ||K - K^T||_max / ||K||_max below which a tangent is taken as symmetric

@@ -31,7 +31,7 @@ import numpy as np
 
 from .._jax import jax, jnp, to_device
 from ..errors import SingularTangentError, SolverError
-from ..linsolve import TangentSolver, get_solver, openblas_single_thread
+from ..linsolve import TangentSolver, for_model, get_solver, openblas_single_thread
 from ..model.kernels import NODES
 
 log = logging.getLogger("signorini")
@@ -146,7 +146,7 @@ class Adjoint:
     def _backward(self, sol, pe, selected, solver):
         m = self.model
         params = {k: v for k, v in pe.items() if k != NODES}
-        lin = TangentSolver(get_solver(solver), symmetric_candidate=not m.has_history,
+        lin = TangentSolver(for_model(get_solver(solver), m), symmetric_candidate=not m.has_history,
                             analysis=lambda: m.analysis_tangent(params))
         grad = jax.tree_util.tree_map(jnp.zeros_like, pe)
         G = 0.0
