@@ -42,9 +42,12 @@ class _Foreign(LinearSolver):
 
 
 def available() -> list[str]:
-    """Names of the backends that can be used on this machine."""
+    """Names of the direct backends that can be used on this machine (they factorise
+    any matrix; the iterative ``amg`` solves a model's tangents, :func:`for_model`)."""
     out = []
     for name, cls in SOLVERS.items():
+        if hasattr(cls, "bind"):
+            continue
         try:
             cls()
             out.append(name)
