@@ -103,7 +103,7 @@ class AMGKrylov(LinearSolver):
 
     def __init__(self, rtol: float = 1e-11, restart: int = 100, max_iterations: int = 2000):
         try:
-            import pyamg  # noqa: F401, PLC0415  (the optional dependency, checked at creation)
+            import pyamg  # noqa: F401, PLC0415  (lazy: checked when the solver is created)
         except ImportError:
             raise InputError("solver 'amg' needs pyamg: python3 -m pip install pyamg") from None
         self.rtol, self.restart, self.max_iterations = rtol, restart, max_iterations
@@ -133,7 +133,7 @@ class AMGKrylov(LinearSolver):
 
     # ------------------------------------------------------------------ parts
     def _preconditioner(self, K, symmetric: bool):
-        import pyamg  # noqa: PLC0415
+        import pyamg  # noqa: PLC0415  (lazy: loaded only by runs that use this solver)
 
         st = self.structure
         n_u, n = st.n_u, K.shape[0]
@@ -183,7 +183,7 @@ class AMGKrylov(LinearSolver):
         return v
 
     def _krylov(self, K, apply, b):
-        from pyamg.krylov import fgmres  # noqa: PLC0415
+        from pyamg.krylov import fgmres  # noqa: PLC0415  (lazy, as above)
 
         b = np.asarray(b, dtype=float)
         if b.ndim == 2:
