@@ -293,3 +293,29 @@ def test_face_loads_give_the_uniform_stress(tets):
         sg.solve(sg.Problem(m, sg.LinearElastic(E=1.0, nu=0.3), {},
                             fixed=[sg.Fixed("z0", k) for k in range(3)],
                             loads=[sg.Traction("z1", (0.0, 1.0))]))
+
+
+def test_an_implicit_sphere_is_the_sphere():
+    """The sphere given as a signed-distance function (Implicit, normal and curvature
+    by autodiff) gives the analytic Sphere's pressures and sensitivities to round-off."""
+    from signorini.contact.obstacles3d import Implicit
+    mesh = block(n=4)
+    a = sg.solve(hertz3d(mesh), wrt=["R", "E"]).contact()
+    pb = hertz3d(mesh)
+    ball = Implicit(lambda y, p: jnp.sqrt(y @ y) - p["R"], {"R": "R"},
+                    origin=(0.0, 0.0, lambda p: p["R"] + 1.0), motion=(0.0, 0.0, -D))
+    pb = sg.Problem(pb.mesh, pb.material, pb.params, fixed=pb.fixed,
+                    contact=[sg.Contact(ball, "z1", sg.AugmentedLagrangian(eps="E"))])
+    b = sg.solve(pb, wrt=["R", "E"]).contact()
+    for f in ("p_N", "dp_N_dR", "dp_N_dE", "gap"):
+        assert np.allclose(a[f], b[f], rtol=0, atol=1e-11 * np.abs(a[f]).max()), f
+
+
+def test_hertz3d_peak_pressure_converges_to_hertz():
+    """The force-controlled sphere on the graded block: p0's error against Hertz
+    falls under refinement of the fine zone, below 1 % on the finer mesh."""
+    from signorini.problems.hertz3d import DEFAULTS, analytical, hertz3d_problem
+    p0 = analytical(DEFAULTS["P"], DEFAULTS["R"], DEFAULTS["E"], DEFAULTS["nu"])["p0"]
+    err = [abs(sg.solve(hertz3d_problem(n_fine=n, size=6.0)).contact()["p_N"].max() / p0 - 1)
+           for n in (4, 8)]
+    assert err[1] < err[0] and err[1] < 0.01, err
