@@ -199,6 +199,16 @@ def fmt_coarse(levels) -> str:
         f"{lv['dofs']} DOFs: {sum(lv['newton_iterations'])} it" for lv in levels) + ")"
 
 
+def print_ddm_fd(s):
+    """The table of a summary's DDM derivatives (``dF_ddm``) against its central
+    differences (``dF_fd``, ``ddm_vs_fd_rel_diff``; NaN when not computed)."""
+    print(f"{'parameter':>10} {'DDM':>14} {'FD':>14} {'rel. diff.':>10}")
+    for n, d in s["dF_ddm"].items():
+        fd = s["dF_fd"][n] if isinstance(s["dF_fd"], dict) else float("nan")
+        rel = s["ddm_vs_fd_rel_diff"][n] if isinstance(s["ddm_vs_fd_rel_diff"], dict) else float("nan")
+        print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
+
+
 def print_adjoint(s):
     a = s.get("adjoint")
     if not isinstance(a, dict):

@@ -18,6 +18,7 @@ from ..post import helper
 from ..sensitivity import nonsmooth
 from ..errors import InputError
 from ..algorithms.stepping import last_started, solve
+from ..design.finite_differences import finite_difference
 from ..design.gradient import adjoint_gradient
 from ..errors import ConvergenceError
 from ..linsolve import get_solver
@@ -237,6 +238,24 @@ def adjoint_report(out: Path, sol, response, names, description: str, solver, dd
             "adjoint_vs_ddm_rel_diff": rel, "time_backward_s": t,
             "backward": {k: v for k, v in timing.items()},
             "shape_gradient": "shape_gradient.csv; VTU point data adjoint_shape_gradient (last increment)"}
+
+
+def fd_table(path: Path, pb, F_fn, key, names, dF: dict, fd_check: bool, **fd_kwargs):
+    """(FD derivatives, relative differences) of the response ``F_fn`` (cached under
+    ``key``) by central differences of the whole process for ``names`` (empty
+    without ``fd_check``), next to its DDM derivatives ``dF``; writes them as the
+    CSV ``path`` (parameter, DDM[, FD, rel_diff])."""
+    fd, rel = {}, {}
+    if fd_check:
+        q = lambda s: float(s.response(F_fn, with_sensitivities=False, key=key)[0])  # noqa: E731
+        for n in names:
+            fd[n] = float(finite_difference(pb, n, q, **fd_kwargs))
+            rel[n] = abs(dF[n] - fd[n]) / abs(dF[n]) if dF[n] else abs(fd[n])
+    rows = {"parameter": list(names), "DDM": [dF[n] for n in names]}
+    if fd_check:
+        rows.update({"FD": [fd[n] for n in names], "rel_diff": [rel[n] for n in names]})
+    io.write_csv(path, rows)
+    return fd, rel
 
 
 def max_rel_diff(ddm: np.ndarray, fd: np.ndarray) -> float:

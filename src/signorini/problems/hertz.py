@@ -61,6 +61,17 @@ def pressure_dR(x, P, R, E, nu):
     return np.where(inside, h["p0"] / (2 * R) * (2 * xi**2 - 1) / s, 0.0)
 
 
+def check_mesh_options(refine, n_fine, size: float, zone: float) -> None:
+    """The graded meshes' options: whole numbers refine >= 0 and n_fine >= 1, and a
+    fine zone narrower than the block (both in units of a0)."""
+    for k, v in (("refine", refine), ("n_fine", n_fine)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (0 if k == "refine" else 1):
+            raise InputError(f"{k} must be an integer >= {0 if k == 'refine' else 1}, got {v!r}")
+    if not (np.isfinite(size) and np.isfinite(zone) and 0 < zone < size):
+        raise InputError(f"the fine zone must be narrower than the block: need 0 < zone < block, "
+                         f"got zone = {zone} a0, block = {size} a0")
+
+
 def mesh_coordinates(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 24,
                      size: float = 20.0, zone: float = 1.5):
     """Graded grid lines (xs, ys) of the half model and the nominal half-width a0.
@@ -79,12 +90,7 @@ def mesh_coordinates(nominal: dict | None = None, *, refine: int = 0, n_fine: in
     """
     nom = dict(DEFAULTS)
     nom.update(nominal or {})
-    for k, v in (("refine", refine), ("n_fine", n_fine)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (0 if k == "refine" else 1):
-            raise InputError(f"{k} must be an integer >= {0 if k == 'refine' else 1}, got {v!r}")
-    if not (np.isfinite(size) and np.isfinite(zone) and 0 < zone < size):
-        raise InputError(f"the fine zone must be narrower than the block: need 0 < zone < block, "
-                         f"got zone = {zone} a0, block = {size} a0")
+    check_mesh_options(refine, n_fine, size, zone)
     a0 = analytical(nom["P"], nom["R"], nom["E"], nom["nu"])["a"]
     k = 2**refine
     nf = n_fine * k

@@ -34,6 +34,7 @@ from ..fem.mesh3d import box
 from ..linsolve import check_size
 from ..materials import LinearElastic
 from ..model.problem import Problem
+from .hertz import check_mesh_options
 
 DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 0.1, "R": 1.0, "mu": 0.0}
 
@@ -70,12 +71,7 @@ def grid(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 8, size:
     growth 1.3^(1/2^refine) beyond it, W = H = size a0 (sized by the nominal values
     only)."""
     nom = {**DEFAULTS, **(nominal or {})}
-    for k, v in (("refine", refine), ("n_fine", n_fine)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (0 if k == "refine" else 1):
-            raise InputError(f"{k} must be an integer >= {0 if k == 'refine' else 1}, got {v!r}")
-    if not (np.isfinite(size) and np.isfinite(zone) and 0 < zone < size):
-        raise InputError(f"the fine zone must be narrower than the block: need 0 < zone < block, "
-                         f"got zone = {zone} a0, block = {size} a0")
+    check_mesh_options(refine, n_fine, size, zone)
     a0 = analytical(nom["P"], nom["R"], nom["E"], nom["nu"])["a"]
     k = 2**refine
     nf = n_fine * k

@@ -8,7 +8,6 @@ import numpy as np
 
 from ... import timing
 from ...algorithms.newton import NewtonOptions
-from ...design.finite_differences import finite_difference
 from ...errors import InputError
 from ...post import files as io, plots
 from ...problems import forging
@@ -16,9 +15,9 @@ from ...problems.forging import (
     DEFAULTS, H0, TABLE1, body_volume, die_force, forging_problem, lateral_nodes, objective, options)
 from ..options import (
     Formatter, adjoint_option, finish, forging_mesh_options, newton_options, parse_sets,
-    print_adjoint, set_help, solver_options, with_defaults)
+    print_adjoint, print_ddm_fd, set_help, solver_options, with_defaults)
 from ..runner import (
-    Timer, adjoint_report, newton_log, prepare_output, solve_or_report, solver_entries,
+    Timer, adjoint_report, fd_table, newton_log, prepare_output, solve_or_report, solver_entries,
     summary_header, use_solver, write_summary)
 
 NAME = "forging"
@@ -72,11 +71,7 @@ def execute(args) -> int:
           f"{s['params']['mu']:g}): F = {s['F']:.6g}, max |r - h0| / h0 = "
           f"{s['max_rel_deviation_from_r_opt']:.4f}, die force {s['die_force_final']:.5g}, "
           f"volume ratio {s['volume']['ratio']:.4f}")
-    print(f"{'parameter':>10} {'DDM':>14} {'FD':>14} {'rel. diff.':>10}")
-    for n, d in s["dF_ddm"].items():
-        fd = s["dF_fd"][n] if isinstance(s["dF_fd"], dict) else float("nan")
-        rel = s["ddm_vs_fd_rel_diff"][n] if isinstance(s["ddm_vs_fd_rel_diff"], dict) else float("nan")
-        print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
+    print_ddm_fd(s)
     print_adjoint(s)
     return finish(args, s)
 
@@ -138,8 +133,8 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     io.write_pvd(sol, out / "forging.pvd")  # files meanwhile, beside the check
 
     timing.mark("sensitivities")
-    fd, rel = _table1(out, pb, F_fn, names, dF, fd_check, steps=steps, options=opts, solver=solver,
-                      rel_step=fd_step)
+    fd, rel = fd_table(out / "table1.csv", pb, F_fn, ("forging-objective",), names, dF, fd_check,
+                       steps=steps, options=opts, solver=solver, rel_step=fd_step)
     timing.mark("output")
 
     summary = summary_header("converged", sol)
@@ -164,23 +159,6 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
-
-
-def _table1(out, pb, F_fn, names, dF, fd_check, **fd_kwargs):
-    """table1.csv: the DDM sensitivities of F and, with ``fd_check``, central
-    differences of the whole process and their relative differences."""
-    fd, rel = {}, {}
-    if fd_check:
-        q = lambda s: float(s.response(F_fn, with_sensitivities=False, key=("forging-objective",))[0])  # noqa: E731
-        for n in names:
-            fd[n] = float(finite_difference(pb, n, q, **fd_kwargs))
-            rel[n] = abs(dF[n] - fd[n]) / abs(dF[n]) if dF[n] else abs(fd[n])
-    rows = {"parameter": names, "DDM": [dF[n] for n in names]}
-    if fd_check:
-        rows["FD"] = [fd[n] for n in names]
-        rows["rel_diff"] = [rel[n] for n in names]
-    io.write_csv(out / "table1.csv", rows)
-    return fd, rel
 
 
 def _figures(out, sol, X, x, v, F, force) -> None:

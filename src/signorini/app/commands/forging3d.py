@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 
 from ... import timing
-from ...design.finite_differences import finite_difference
 from ...errors import InputError
 from ...post import files as io, plots
 from ...problems.forging import parse_mesh
@@ -16,9 +15,9 @@ from ...problems.forging3d import (
     out_of_round, volume)
 from ..options import (
     Formatter, adjoint_option, finish, newton_options, parse_sets, positive_int, print_adjoint,
-    set_help, solver_options, with_defaults)
+    print_ddm_fd, set_help, solver_options, with_defaults)
 from ..runner import (
-    Timer, adjoint_report, newton_log, prepare_output, solve_or_report, solver_entries,
+    Timer, adjoint_report, fd_table, newton_log, prepare_output, solve_or_report, solver_entries,
     summary_header, use_solver, write_summary)
 
 NAME = "forging3d"
@@ -71,11 +70,7 @@ def execute(args) -> int:
           f"{s['params']['mu']:g}): F = {s['F']:.6g}, die force {s['die_force_final']:.5g}, "
           f"volume ratio {s['volume']['ratio']:.5f} (elastic estimate "
           f"{s['volume']['elastic_estimate']:.5f})")
-    print(f"{'parameter':>10} {'DDM':>14} {'FD':>14} {'rel. diff.':>10}")
-    for n, d in s["dF_ddm"].items():
-        fd = s["dF_fd"][n] if isinstance(s["dF_fd"], dict) else float("nan")
-        rel = s["ddm_vs_fd_rel_diff"][n] if isinstance(s["ddm_vs_fd_rel_diff"], dict) else float("nan")
-        print(f"{n:>10} {d:14.6e} {fd:14.6e} {rel:10.1e}")
+    print_ddm_fd(s)
     print_adjoint(s)
     return finish(args, s)
 
@@ -136,18 +131,10 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (6, 6), step
                  title="3-D forging: die force against stroke")
     io.write_pvd(sol, out / "forging3d.pvd")
 
-    fd, rel = {}, {}
     if fd_check:
         timing.mark("sensitivities")
-        q = lambda s: float(s.response(F_fn, with_sensitivities=False, key=("forging3d-objective",))[0])  # noqa: E731
-        for n in names:
-            fd[n] = float(finite_difference(pb, n, q, steps=steps, options=opts, solver=solver,
-                                            rel_step=fd_step))
-            rel[n] = abs(dF[n] - fd[n]) / abs(dF[n]) if dF[n] else abs(fd[n])
-    rows = {"parameter": names, "DDM": [dF[n] for n in names]}
-    if fd_check:
-        rows.update({"FD": [fd[n] for n in names], "rel_diff": [rel[n] for n in names]})
-    io.write_csv(out / "sensitivities.csv", rows)
+    fd, rel = fd_table(out / "sensitivities.csv", pb, F_fn, ("forging3d-objective",), names, dF,
+                       fd_check, steps=steps, options=opts, solver=solver, rel_step=fd_step)
     timing.mark("output")
     summary = summary_header("converged", sol)
     summary.update({
