@@ -207,7 +207,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         StepFailure: no convergence, divergence, non-finite residual or singular tangent.
     """
     free = model.free
-    disp = free < 2 * model.n_nodes  # the displacements among the free DOFs
+    disp = free < model.dim * model.n_nodes  # the displacements among the free DOFs
     ref = None
     dw = None
     norm_prev = np.inf

@@ -101,11 +101,11 @@ class Solution:
         return self._inc(i).w[: self.model.dim * self.model.n_nodes].reshape(-1, self.model.dim)
 
     def reference(self) -> np.ndarray:
-        """(n_nodes, 2) reference coordinates X(phi)."""
+        """(n_nodes, dim) reference coordinates X(phi)."""
         return np.asarray(self.model.reference(self.jax_params))
 
     def current(self, i: int = -1) -> np.ndarray:
-        """(n_nodes, 2) current coordinates x = X + u."""
+        """(n_nodes, dim) current coordinates x = X + u."""
         return self.reference() + self.displacement(i)
 
     def multipliers(self, i: int = -1, surface: int = 0) -> np.ndarray:
@@ -191,7 +191,7 @@ class Solution:
         return self._inc(i).sens[name]
 
     def displacement_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
-        """(n_nodes, 2) Du/Dphi."""
+        """(n_nodes, dim) Du/Dphi."""
         d = self.model.dim
         return self.w_sensitivity(name, i)[: d * self.model.n_nodes].reshape(-1, d)
 

@@ -63,7 +63,8 @@ class UzawaSolution:
         return -self.lam
 
     def displacement(self) -> np.ndarray:
-        return self.w[: 2 * self.model.n_nodes].reshape(-1, 2)
+        d = self.model.dim
+        return self.w[: d * self.model.n_nodes].reshape(-1, d)
 
 
 def _check(model):

@@ -42,7 +42,7 @@ class Gradient:
 
     Attributes:
         value: G (sum over the selected increments).
-        grad: name -> dG/dphi (a float; for ``"nodes"`` an (n_nodes, 2) array).
+        grad: name -> dG/dphi (a float; for ``"nodes"`` an (n_nodes, dim) array).
         mode: ``"ddm"``, ``"adjoint"`` or ``"fd"``.
         solution: the forward :class:`~signorini.algorithms.solution.Solution` (nominal values).
         timing: seconds: ``forward`` (the solve), ``gradient`` (the DDM's share of the

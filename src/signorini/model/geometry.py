@@ -11,7 +11,7 @@ import numpy as np
 from .._jax import jnp
 from ..params import resolve
 
-#: reserved parameter name: every nodal coordinate of the reference mesh (n_nodes, 2)
+#: reserved parameter name: every nodal coordinate of the reference mesh (n_nodes, dim)
 NODES = "nodes"
 
 
@@ -20,8 +20,8 @@ class ModelGeometry:
 
     # ----------------------------------------------------------- pure kernels
     def reference(self, params):
-        """X(phi) (n_nodes, 2): nominal mesh moved along the design velocities (and
-        by ``params["nodes"]`` (n_nodes, 2), the shape field of every nodal
+        """X(phi) (n_nodes, dim): nominal mesh moved along the design velocities (and
+        by ``params["nodes"]`` (n_nodes, dim), the shape field of every nodal
         coordinate, when an adjoint gradient asks for it: docs/theory.md §11)."""
         if not self.shape_names and NODES not in params:
             return self._X0

@@ -33,7 +33,7 @@ class Problem:
         fixed: prescribed displacements (:class:`~signorini.fem.loads.Fixed`).
         loads: boundary loads (:class:`~signorini.fem.loads.Pressure`, ``Traction``).
         contact: contact surfaces (:class:`~signorini.contact.Contact`).
-        shape: name -> design velocity field V (n_nodes, 2). The reference
+        shape: name -> design velocity field V (n_nodes, dim). The reference
             coordinates are X(phi) = X0 + sum_k (phi_k - phi_k0) V_k, where
             phi_k0 is the value of ``k`` in ``params`` when the mesh was made
             (``shape_nominal``, defaulting to ``params``).

@@ -31,7 +31,7 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     switch points of the increment (docs/theory.md §11: point data ``switch`` 1
     weakly active, 2 stick/slip switch; cell data ``plastic_switch``) and, on
     the last increment, an adjoint shape gradient if one was attached
-    (``solution.shape_gradient``, (n_nodes, 2)). The fields are computed here;
+    (``solution.shape_gradient``, (n_nodes, dim)). The fields are computed here;
     the file is written by the output helper if one runs
     (:mod:`signorini.post.helper`)."""
     path = Path(path)
