@@ -11,20 +11,22 @@ from ..errors import InputError
 
 def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) interpolation matrix: piecewise linear on the Delaunay triangulation
-    of the coarse points Xc; a point outside it takes the nearest coarse point."""
+    (tetrahedralisation in 3-D) of the coarse points Xc; a point outside it takes
+    the nearest coarse point."""
     nf, nc = len(Xf), len(Xc)
     from scipy.spatial import Delaunay, cKDTree  # lazy: heavy (scipy.special), coarse starts only
 
+    d = Xc.shape[1]
     tri = Delaunay(Xc)
     simplex = tri.find_simplex(Xf)
     inside = simplex >= 0
     rows, cols, vals = [], [], []
     if inside.any():
         s = simplex[inside]
-        T = tri.transform[s]  # (m, 3, 2): inverse affine map and the offset
-        b = np.einsum("mij,mj->mi", T[:, :2], Xf[inside] - T[:, 2])
+        T = tri.transform[s]  # (m, d + 1, d): inverse affine map and the offset
+        b = np.einsum("mij,mj->mi", T[:, :d], Xf[inside] - T[:, d])
         bary = np.column_stack([b, 1.0 - b.sum(axis=1)])
-        rows.append(np.repeat(np.nonzero(inside)[0], 3))
+        rows.append(np.repeat(np.nonzero(inside)[0], d + 1))
         cols.append(tri.simplices[s].ravel())
         vals.append(bary.ravel())
     if (~inside).any():
@@ -38,12 +40,19 @@ def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
 
 def _along_surface(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) matrix taking values at coarse surface nodes Xc to points Xf on the
-    same curve: linear between the two nearest coarse nodes (clamped to the segment)."""
+    same curve: linear between the two nearest coarse nodes (clamped to the segment);
+    on a 3-D surface the inverse-distance mean of the four nearest (a start only)."""
     nf, nc = len(Xf), len(Xc)
     if nc == 1:
         return sp.csr_matrix((np.ones(nf), (np.arange(nf), np.zeros(nf, dtype=int))), shape=(nf, 1))
     from scipy.spatial import cKDTree  # lazy: heavy (scipy.special), coarse starts only
 
+    if Xc.shape[1] == 3:  # a surface: the inverse-distance mean of the 4 nearest coarse nodes
+        k = min(4, nc)
+        dist, idx = cKDTree(Xc).query(Xf, k=k)
+        w = 1.0 / np.maximum(dist, 1e-12 * max(float(np.ptp(Xc)), 1e-300))
+        w /= w.sum(axis=1, keepdims=True)
+        return sp.csr_matrix((w.ravel(), (np.repeat(np.arange(nf), k), idx.ravel())), shape=(nf, nc))
     _, idx = cKDTree(Xc).query(Xf, k=2)
     a, b = Xc[idx[:, 0]], Xc[idx[:, 1]]
     d = b - a
@@ -76,8 +85,8 @@ class Prolongation:
             self.matrix = sp.identity(fm.n_dof, format="csr")  # the same mesh (other parameters)
             return
         blocks = []
-        Pu = _linear_weights(Xc, Xf)  # nodes -> nodes; DOFs interleave (x, y) per node
-        blocks.append((sp.kron(Pu, sp.identity(2)), 0, 0))
+        Pu = _linear_weights(Xc, Xf)  # nodes -> nodes; DOFs interleave (x, y[, z]) per node
+        blocks.append((sp.kron(Pu, sp.identity(Xf.shape[1])), 0, 0))
         for sc, sf in zip(cm.surfaces, fm.surfaces):
             Ps = _along_surface(Xc[sc.nodes], Xf[sf.nodes])
             blocks.append((sp.kron(Ps, sp.identity(sf.n_mult)), sf.lam_offset, sc.lam_offset))

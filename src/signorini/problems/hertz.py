@@ -193,15 +193,15 @@ COARSEST = 12
 MAX_COARSE_LEVELS = 3
 
 
-def coarse_levels(refine: int, n_fine: int = 24) -> list[tuple[int, int]]:
+def coarse_levels(refine: int, n_fine: int = 24, coarsest: int = COARSEST) -> list[tuple[int, int]]:
     """(refine, n_fine) of the meshes that start a one-step solve, coarsest first:
-    the cell count across the fine zone halved down to :data:`COARSEST`, at most
+    the cell count across the fine zone halved down to ``coarsest``, at most
     :data:`MAX_COARSE_LEVELS` of them (see :mod:`signorini.algorithms.coarse_to_fine`)."""
     out, r, n = [], refine, n_fine
     while len(out) < MAX_COARSE_LEVELS:
         if r > 0:
             r -= 1
-        elif n % 2 == 0 and n // 2 >= COARSEST:
+        elif n % 2 == 0 and n // 2 >= coarsest:
             n //= 2
         else:
             break
@@ -225,13 +225,14 @@ def coarse_start_skipped(pb, coarse_start: bool) -> str | None:
     return None
 
 
-def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options, solver):
+def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options, solver,
+                     coarsest: int = COARSEST):
     """(guide, levels): the meshes ``build(refine, n_fine)`` of
     :func:`coarse_levels`, solved coarse to fine along the whole load path, the
     finest of them a ``guide`` for ``solve(pb, start=...)``; (None, []) without
     a coarser mesh. A failing coarse level guides only over the increments it
     converged (recorded in ``levels``)."""
-    coarse = [build(r, n) for r, n in coarse_levels(refine, n_fine)]
+    coarse = [build(r, n) for r, n in coarse_levels(refine, n_fine, coarsest)]
     if not coarse:
         return None, []
     try:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import timing
+from ...algorithms.coarse_to_fine import warn_failed_levels
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
 from ...post import files as io, plots
@@ -16,7 +17,7 @@ from ...problems import hertz
 from ...problems.hertz3d import DEFAULTS, analytical, hertz3d_problem, pressure, pressure_dR
 from ...problems.hertz_friction import stick_zone
 from ..options import (
-    UNITS, Formatter, adjoint_option, finish, fmt_fd, newton_options, nonneg_int, parse_sets,
+    UNITS, Formatter, adjoint_option, coarse_start_option, finish, fmt_fd, newton_options, nonneg_int, parse_sets,
     positive_float, positive_int, print_adjoint, solver_options, with_defaults)
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
@@ -25,6 +26,8 @@ from ..runner import (
 NAME = "hertz3d"
 #: Newton's default tolerance of this command (--rtol)
 RTOL = 1e-10
+#: the coarsest mesh of a coarse start has this many cells across the fine zone
+COARSEST = 4
 #: the increments of a frictional run (the path matters), and of a frictionless one
 STEPS_FRICTION, STEPS = 10, 1
 
@@ -73,6 +76,7 @@ def add_parser(sub) -> None:
                    help="skip the check of the DDM sensitivities by central finite differences "
                         "(saves two re-solves per parameter)")
     adjoint_option(p, "the contact work W = sum A p_N (g0 - g)")
+    coarse_start_option(p)
     solver_options(p)
     newton_options(p, RTOL)
 
@@ -83,7 +87,8 @@ def execute(args) -> int:
     s = run(args.out, params, refine=args.refine, n_fine=args.n_fine, steps=args.steps,
             axisymmetric=args.axisymmetric, fd_check=not args.no_fd, solver=args.solver,
             size=args.block, zone=args.zone_width, force_size=args.force_size,
-            adjoint=args.adjoint, options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
+            adjoint=args.adjoint, coarse_start=not args.no_coarse_start,
+            options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
     zone = f", c/a = {s['c_over_a']:.3f}" if isinstance(s.get("c_over_a"), float) else ""
     print(f"Hertz {s['model']} ({s['mesh']['dofs']} DOFs, {s['steps']} increment(s)): "
           f"p0 = {s['p0']['computed']:.5g} (Hertz {s['p0']['analytical']:.5g}, "
@@ -99,7 +104,7 @@ def execute(args) -> int:
 def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, steps=None,
         axisymmetric: bool = False, fd_check: bool = True, sensitivities=None, options=None,
         fd_step: float = 1e-5, solver="auto", size: float = 12.0, zone: float = 1.5,
-        force_size: bool = False, adjoint: bool = False) -> dict:
+        force_size: bool = False, adjoint: bool = False, coarse_start: bool = True) -> dict:
     """Solve the sphere-on-block problem with DDM sensitivities and write the results.
 
     Writes ``contact.csv``, ``summary.json``, ``pressure.png``, ``sensitivity.png``
@@ -108,6 +113,9 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, st
     Sensitivities: R, E, P (and mu with friction). The FD check re-solves the
     whole path at phi +- h, h = ``fd_step`` max(|phi|, 1), on the same mesh
     (sized by the nominal values only), and compares p_N inside r < 0.9 a.
+    ``coarse_start``: from 50,000 DOFs on, Newton starts from the solution of
+    coarser meshes (n_fine halved, down to :data:`COARSEST`), interpolated; only
+    the first iterate changes, not the result.
     """
     clock = Timer()
     out = prepare_output(out)
@@ -127,8 +135,16 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, st
                  "zone_over_a0": zone, "refine": refine, "n_fine": n_fine}
     t0 = clock()
     timing.mark("solve")
+    guide, levels = None, []
+    skipped = hertz.coarse_start_skipped(pb, coarse_start)
+    if skipped is None:
+        guide, levels = hertz.coarse_start_for(
+            pb, lambda r, n: hertz3d_problem(params, refine=r, n_fine=n, size=size, zone=zone,
+                                             axisymmetric=axisymmetric),
+            refine, n_fine, steps=steps, options=options, solver=solver, coarsest=COARSEST)
     sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          wrt=sensitivities, options=options, solver=solver)
+                          wrt=sensitivities, options=options, solver=solver, start=guide)
+    warn_failed_levels(sol, levels)
     t_solve = clock() - t0
     c = _contact_columns(sol, axisymmetric)
     closed = c["p_N"] > 0
@@ -169,6 +185,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, st
         "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
         "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,
               "error_in_cells": (a_fe - an["a"]) / mesh_info["contact_cell_size"]},
+        "coarse_start": levels if levels else (skipped or "no coarser mesh"),
         "c_over_a": zone_info["c_over_a"] if friction else "frictionless",
         "c_over_a_bracket": zone_info["c_over_a_bracket"] if friction else "frictionless",
         **newton_log(sol),
