@@ -29,6 +29,7 @@ def test_forging3d_cli_ddm_equals_fd_for_every_parameter(tmp_path):
     assert 1 - vol["ratio"] > 1e-4
     force = np.loadtxt(out / "force.csv", delimiter=",", skiprows=1)
     assert np.all(np.diff(force[:, 1]) > 0) and force[-1, 0] == pytest.approx(f3.DEFAULTS["stroke"])
+    assert force[0, 0] == 0.0 and force[0, 1] == 0.0 and len(force) == 7
     for name in ("sensitivities.csv", "lateral.csv", "force.png", "forging3d.pvd"):
         assert (out / name).is_file(), name
 

@@ -116,9 +116,9 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (6, 6), step
                              solver, dF)
     timing.mark("output")
     force_fn = die_force(model)
-    force = [float(sol.response(force_fn, k, with_sensitivities=False, key=("die-force",))[0])
-             for k in range(len(sol.increments))]
-    stroke = [inc.t * v["stroke"] for inc in sol.increments]
+    force = [0.0] + [float(sol.response(force_fn, k, with_sensitivities=False, key=("die-force",))[0])
+                     for k in range(len(sol.increments))]
+    stroke = [0.0] + [inc.t * v["stroke"] for inc in sol.increments]  # from the undeformed start
     X, x = sol.reference(), sol.current()
     vol0, vol1 = volume(model, X), volume(model, x)
     elastic = elastic_volume_ratio(model, x, sol.stress()[0], v)
