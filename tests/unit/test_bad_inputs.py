@@ -255,11 +255,21 @@ def test_two_contacts_on_the_same_nodes():
     ours(e, "share", "one Contact only")
 
 
-@pytest.mark.parametrize("value", [(1.0,), (1.0, 2.0, 3.0), 5.0, "q"])
+@pytest.mark.parametrize("value", [(1.0,), (1.0, 2.0, 3.0, 4.0), 5.0, "q"])
 def test_traction_of_the_wrong_length(value):
     with pytest.raises(InputError) as e:
         sg.Traction("top", value)
     ours(e, "pair (t_x, t_y)")
+
+
+def test_a_3d_traction_on_a_2d_body():
+    """Three components (a 3-D body's) on a plane body: named when the loads are built."""
+    pb = sg.Problem(block_mesh(2), sg.LinearElastic(E=1.0, nu=0.3), {},
+                    fixed=[sg.Fixed("bottom", 0), sg.Fixed("bottom", 1)],
+                    loads=[sg.Traction("top", (0.0, 1.0, 0.0))])
+    with pytest.raises(InputError) as e:
+        sg.solve(pb)
+    ours(e, "2-D body needs 2 components")
 
 
 @pytest.mark.parametrize("edges", [[0, 1, 2], [[0, 1, 2], [2, 3, 4]], [[0.5, 1.0]]])
