@@ -166,7 +166,7 @@ class Coulomb(ContactLawDefaults):
         rho = -cp["mu"] * jnp.where(case[0], lhn, 0.0)
         fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp, hist,
                                                            rho, case)
-        return jnp.concatenate([fx, fl])
+        return jnp.concatenate([fx.ravel(), fl])
 
     # ------------------------------------------------------------ post-process
     def tractions(self, x, lam, A, geo, obstacle, cp):

@@ -69,7 +69,7 @@ class AugmentedLagrangian(_Regularised):
     def residual(self, x, lam, A, geo, obstacle, cp, hist):
         """(2 + 1,): contact force on x and the multiplier equation (eqs. 19-20)."""
         fx, fl = jax.grad(self.potential, argnums=(0, 1))(x, lam, A, geo, obstacle, cp)
-        return jnp.concatenate([fx, fl])
+        return jnp.concatenate([fx.ravel(), fl])
 
     def tractions(self, x, lam, A, geo, obstacle, cp):
         """(p_N, p_T): pressure positive in compression, tangential traction.
@@ -100,7 +100,7 @@ class Penalty(_Regularised):
         return 0.5 * A * cp["eps"] * neg_part(g) ** 2
 
     def residual(self, x, lam, A, geo, obstacle, cp, hist):
-        return jax.grad(self.potential)(x, lam, A, geo, obstacle, cp)
+        return jax.grad(self.potential)(x, lam, A, geo, obstacle, cp).ravel()
 
     def tractions(self, x, lam, A, geo, obstacle, cp):
         return -cp["eps"] * neg_part(obstacle.gap(x, geo)), jnp.zeros(())

@@ -203,3 +203,30 @@ def rectangle(xs, ys) -> Mesh:
     node_sets = {"bottom": bottom, "top": top, "left": left, "right": right,
                  "all": np.arange(nx * ny)}
     return Mesh(nodes, cells, node_sets, edge_sets)
+
+
+def merge(bodies: Mapping[str, Mesh]) -> Mesh:
+    """One mesh of several bodies (disconnected: no node is shared).
+
+    ``bodies``: name -> mesh. Each body's node and edge sets keep their names
+    prefixed by the body's, ``"<body>.<set>"``; the node set ``"<body>"`` holds
+    all its nodes. Node and cell numbers follow the order of ``bodies``.
+    """
+    if not bodies:
+        raise InputError("merge needs at least one body")
+    nodes, cells, node_sets, edge_sets = [], [], {}, {}
+    off = 0
+    for name, m in bodies.items():
+        if "." in name:
+            raise InputError(f"body name {name!r}: a body name may not contain '.'")
+        if m.nodes.shape[1] != 2:
+            raise InputError(f"body {name!r}: merge takes 2-D meshes")
+        nodes.append(m.nodes)
+        cells.append(m.cells + off)
+        node_sets[name] = off + np.arange(m.n_nodes)
+        for k, v in m.node_sets.items():
+            node_sets[f"{name}.{k}"] = v + off
+        for k, v in m.edge_sets.items():
+            edge_sets[f"{name}.{k}"] = v + off
+        off += m.n_nodes
+    return Mesh(np.concatenate(nodes), np.concatenate(cells), node_sets, edge_sets)

@@ -10,5 +10,6 @@ increment, and the updated history h. Hyperelastic materials have
 
 from .elastic import LinearElastic, NeoHooke, det_minus_one
 from .j2 import J2Plasticity
+from .bodies import Bodies
 
-__all__ = ["J2Plasticity", "LinearElastic", "NeoHooke", "det_minus_one"]
+__all__ = ["Bodies", "J2Plasticity", "LinearElastic", "NeoHooke", "det_minus_one"]

@@ -16,6 +16,7 @@ import numpy as np
 from .._jax import jax, jnp
 from ..contact.area import check_edges, contact_nodes, nodal_normals
 from ..contact.friction3d import disc, reference_axis
+from ..contact.mortar import build_patches, is_mortar
 from ..errors import InputError
 
 
@@ -34,6 +35,8 @@ class Surface:
     #: no history
     tangential: np.ndarray | None
     axes: np.ndarray | None = None  # 3-D friction: (nc, 3) the fixed axis e_S of each node's tangent basis
+    #: a contact pair (:mod:`signorini.contact.mortar`): each slave node's patch of nodes
+    patches: object = None
 
     @property
     def lam_dofs(self) -> np.ndarray:
@@ -125,15 +128,38 @@ class DofLayout:
                     "is meaningless; remove it from the contact set or free one component")
             m = c.method.n_multipliers
             lam = off + np.arange(len(nodes) * m).reshape(len(nodes), m)
-            dofs = np.concatenate([d * nodes[:, None] + np.arange(d), lam], axis=1)
+            patches = None
+            if is_mortar(c):
+                patches = self._pair_patches(mesh, c, edges, nodes)
+                xdofs = (d * patches.nodes[:, :, None] + np.arange(d)).reshape(len(nodes), -1)
+            else:
+                xdofs = d * nodes[:, None] + np.arange(d)
+            dofs = np.concatenate([xdofs, lam], axis=1)
             if d == 3:
                 tang, axes = self._tangential_mask_3d(c, mesh.nodes, edges, nodes, pres, problem.params)
             else:
                 tang, axes = self._tangential_mask(c, mesh.nodes, edges, nodes, pres), None
-            surfaces.append(Surface(c, edges, nodes, off, m, dofs, tang, axes))
+            surfaces.append(Surface(c, edges, nodes, off, m, dofs, tang, axes, patches))
             off += len(nodes) * m
         self.surfaces = tuple(surfaces)
         self.n_dof = off
+
+    def _pair_patches(self, mesh, c, edges, nodes):
+        """The patches of a contact pair's slave nodes (:func:`signorini.contact.mortar.build_patches`)."""
+        if self.dim != 2:
+            raise InputError(f"contact pair {c.edges!r}/{c.obstacle.master!r}: two-body contact is "
+                             "implemented for plane strain and axisymmetry (2-D meshes); this mesh is 3-D")
+        master = mesh.edge_set(c.obstacle.master)
+        check_edges(master, c.obstacle.master)
+        patches = build_patches(np.asarray(mesh.nodes, dtype=float), edges, nodes, master,
+                                c.obstacle.search, f"{c.edges}/{c.obstacle.master}")
+        if not patches.master_mask.any():
+            raise InputError(
+                f"contact pair {c.edges!r}/{c.obstacle.master!r}: no master segment faces any slave "
+                "segment within the search distance; check that the two edge sets face each other "
+                "(outward normals opposite) and that search (the normal distance of candidates) is "
+                "large enough")
+        return patches
 
     @staticmethod
     def _tangential_mask(contact, X, edges, nodes, pres):

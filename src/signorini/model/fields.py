@@ -85,8 +85,8 @@ class ModelFields:
         if self.n_state and self.material.yield_ratio is not None:
             mp = self.material.values(params)
             kin, form, mat = self.kinematics, self.formulation, self.material
-            ratio = self._over_cells(lambda ue, Xe, he: self.fem.element_yield_ratio(
-                ue, Xe, mat, mp, he, kin, form), u, X, self._material_history(state_n))
+            ratio = self._over_cells(lambda ue, Xe, he, m: self.fem.element_yield_ratio(
+                ue, Xe, mat, m, he, kin, form), u, X, self._material_history(state_n), mp)
         return tuple(out), ratio
 
     def stresses(self, w, params, state_n=None):
@@ -97,5 +97,5 @@ class ModelFields:
         mp = self.material.values(params)
         hn = self._material_history(state_n)
         kin, form, mat = self.kinematics, self.formulation, self.material
-        return self._over_cells(lambda ue, Xe, he: self.fem.element_stress(ue, Xe, mat, mp, he, kin, form),
-                                u, X, hn)
+        return self._over_cells(lambda ue, Xe, he, m: self.fem.element_stress(ue, Xe, mat, m, he, kin, form),
+                                u, X, hn, mp)

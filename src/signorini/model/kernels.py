@@ -41,6 +41,7 @@ from ..contact.area import nodal_normals
 from .dofs import DofLayout
 from ..errors import InputError
 from ..contact.obstacles import Linearized
+from ..contact.mortar import MortarNode
 from .fields import ModelFields
 from .geometry import NODES, ModelGeometry  # noqa: F401  (NODES: re-exported)
 from .cells import CellKernels, element_family
@@ -114,7 +115,8 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         #: the element kernels of the body's kind of cell: Q4 (2-D) or the 3-D cells
         self.fem = element_family(self.kinematics)
         self.formulation = p.resolved_formulation()
-        self.material = p.material
+        # per-body materials: each cell's body
+        self.material = p.material.bind(p.mesh) if hasattr(p.material, "bind") else p.material
         self.n_state = int(p.material.n_state)
         self.load_edges = [p.mesh.face_set(l.edges) if self.dim == 3 else p.mesh.edge_set(l.edges)
                            for l in p.loads]  # noqa: E741
@@ -148,7 +150,11 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         # mesh (gathers, kernels and scatters fused: one dispatch per Newton evaluation);
         # on larger meshes by the programs of the element and contact kinds, compiled once
         # for every mesh and run over chunks of cells and nodes
-        self.by_kind = len(self.conn) > self.WHOLE_MESH_UP_TO
+        # (contact pairs and per-body materials: whole-mesh programs only, the kinds'
+        # programs take one material and no patches)
+        self.by_kind = (len(self.conn) > self.WHOLE_MESH_UP_TO
+                        and all(s.patches is None for s in layout.surfaces)
+                        and not getattr(self.material, "per_cell", False))
         self.cells = CellKernels.of(p.material, self.kinematics, self.formulation)
         self._edofs_ravel = None
         self.cache: dict = {}
@@ -244,9 +250,13 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         geometry, method values, and (X, reference normals) for linearised kinematics."""
         c = s.contact
         A = self.kinematics.contact_areas(X, s.edges, s.nodes)
-        x = X[s.nodes] + u[s.nodes]
         geo = c.obstacle.geometry(params, t)
         cp = c.method.values(params)
+        if s.patches is not None:  # a contact pair: each slave node's patch of nodes
+            pn = s.patches.nodes
+            return (X[pn] + u[pn], lam, A, geo, cp,
+                    (X[pn], jnp.asarray(s.patches.slave_mask), jnp.asarray(s.patches.master_mask)))
+        x = X[s.nodes] + u[s.nodes]
         return x, lam, A, geo, cp, (X[s.nodes], nodal_normals(X, s.edges, s.nodes))
 
     def _surface_inputs(self, w, params, t):
@@ -258,7 +268,10 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
 
     def obstacle_at(self, s, Xs):
         """The obstacle as seen by one contact node (linearised kinematics if asked)."""
-        if self.linear_contact[self.surfaces.index(s)]:
+        linear = self.linear_contact[self.surfaces.index(s)]
+        if s.patches is not None:
+            return MortarNode(*Xs, linear=linear, axisymmetric=self.kinematics.name == "axisymmetric")
+        if linear:
             return Linearized(s.contact.obstacle, *Xs)
         return s.contact.obstacle
 
@@ -310,10 +323,10 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         hn = self._material_history(state_n)
         kin, form, mat, fem = self.kinematics, self.formulation, self.material, self.fem
         if tangent:
-            f = lambda ue, Xe, he: fem.element_residual_tangent(ue, Xe, mat, mp, he, kin, form)
+            f = lambda ue, Xe, he, m: fem.element_residual_tangent(ue, Xe, mat, m, he, kin, form)
         else:
-            f = lambda ue, Xe, he: fem.element_update(ue, Xe, mat, mp, he, kin, form)
-        return self._over_cells(f, u, X, hn)
+            f = lambda ue, Xe, he, m: fem.element_update(ue, Xe, mat, m, he, kin, form)
+        return self._over_cells(f, u, X, hn, mp)
 
     #: element kernels run over chunks of CELL_CHUNK cells on meshes of at least
     #: CHUNKED_FROM cells: one vmap over every cell streams each intermediate of
@@ -323,15 +336,18 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     CELL_CHUNK = 16384
     CHUNKED_FROM = 65536
 
-    def _over_cells(self, f, u, X, hn):
-        """f(u_e, X_e, h_e) mapped over the cells (h_e None without history): a
-        vmap, or on large meshes a ``lax.map`` over chunks of vmaps (the last
-        chunk padded with copies of cell 0, dropped from the result)."""
+    def _over_cells(self, f, u, X, hn, mp):
+        """f(u_e, X_e, h_e, mp_e) mapped over the cells (h_e None without history;
+        mp_e the material values, each cell's own with per-body materials,
+        :class:`~signorini.materials.Bodies`): a vmap, or on large meshes a
+        ``lax.map`` over chunks of vmaps (the last chunk padded with copies of
+        cell 0, dropped from the result)."""
         conn = np.asarray(self.conn)
         n = conn.shape[0]
-        axes = (0, 0, 0 if hn is not None else None)
+        per_cell = getattr(self.material, "per_cell", False)
+        axes = (0, 0, 0 if hn is not None else None, 0 if per_cell else None)
         if n < max(self.CHUNKED_FROM, 2 * self.CELL_CHUNK):
-            return jax.vmap(f, axes)(u[conn], X[conn], hn)
+            return jax.vmap(f, axes)(u[conn], X[conn], hn, mp)
         u, X = to_device(u), to_device(X)  # indexed by traced chunks of cells
         hn = None if hn is None else to_device(hn)
         size = self.CELL_CHUNK
@@ -340,7 +356,8 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
 
         def chunk(ce):
             c, e = ce
-            return jax.vmap(f, axes)(u[e], X[e], None if hn is None else hn[c])
+            return jax.vmap(f, axes)(u[e], X[e], None if hn is None else hn[c],
+                                     jax.tree_util.tree_map(lambda a: a[c], mp) if per_cell else mp)
 
         out = jax.lax.map(chunk, (cells, conn[cells]))
         return jax.tree_util.tree_map(lambda a: a.reshape((k * size,) + a.shape[2:])[:n], out)
@@ -389,10 +406,12 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             def node(xs, ls, a, hs, X0, s=s, method=method, geo=geo, cp=cp):
                 obstacle = self.obstacle_at(s, X0)
 
+                k = xs.size  # a pair's patch: (P, dim) positions
+
                 def r(v):
-                    out = method.residual(v[:self.dim], v[self.dim:], a, geo, obstacle, cp, hs)
+                    out = method.residual(v[:k].reshape(xs.shape), v[k:], a, geo, obstacle, cp, hs)
                     return out, out
-                return jax.jacfwd(r, has_aux=True)(jnp.concatenate([xs, ls]))
+                return jax.jacfwd(r, has_aux=True)(jnp.concatenate([xs.ravel(), ls]))
 
             Kc, rc = jax.vmap(node, (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
             R = R.at[s.dofs.ravel()].add(rc.ravel())

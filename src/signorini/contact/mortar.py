@@ -1,0 +1,276 @@
+"""Two deformable surfaces in contact: the segment-to-segment (mortar) pair.
+
+A pair has a *slave* surface (an edge set whose nodes carry the multipliers)
+and a *master* surface (another edge set, of the same body or of another one).
+Per slave node j the contact law (:class:`~signorini.contact.methods.AugmentedLagrangian`,
+:class:`~signorini.contact.friction.Coulomb`) sees, in place of the distance to a
+rigid obstacle, the mortar-weighted gap and slip (docs/theory.md §13)::
+
+    g_j = (1 / A_j) int_Gs N_j(X) g(X) dGamma_0,     s_j = (1 / A_j) int_Gs N_j(X) s(X) dGamma_0,
+
+A_j = int N_j dGamma_0 (the node's equivalent area, the same as on a rigid
+obstacle), N_j the slave node's shape function, g the distance from a slave
+point to the master surface along the slave segment's normal, s the tangential
+offset of the master material point now opposite the slave point. The
+integrals are taken segment by segment over the overlaps of each slave segment
+with the master segments projected onto it (2-point Gauss on each overlap:
+exact, the integrands being polynomials of degree <= 3 in the slave
+coordinate), so that a flat interface between non-matching meshes transmits a
+uniform pressure exactly (the contact patch test).
+
+What a node needs is a fixed *patch* of nodes: the slave node, its two slave
+neighbours and the candidate master segments (found once, on the nominal
+reference mesh: the pairing does not depend on a parameter's value). The
+geometry (projections, overlaps, normals) is a JAX function of the patch's
+positions, so the residual, the tangent, the DDM pseudo-loads and the adjoint
+differentiate it exactly. With linearised kinematics (small strain) the
+normals, tangents and overlaps are those of the reference configuration and
+the gap and slip are linear in the displacements; with finite kinematics they
+are those of the current configuration (finite sliding within the candidates).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._jax import jnp
+from ..errors import InputError
+
+TWO_PI = 2.0 * np.pi
+#: Gauss points of the 2-point rule on [0, 1]
+_GP = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
+#: the gap given to a slave node that no master segment overlaps (open: its
+#: multiplier equation is lam = 0), relative to the patch size
+FAR = 1e6
+
+
+@dataclass(frozen=True)
+class Mortar:
+    """The master surface of a contact pair, in the place of a rigid obstacle.
+
+    Attributes:
+        master: name of the master edge set.
+        search: normal distance (reference configuration) within which a master
+            segment is a candidate partner of a slave segment; None: the size of
+            the slave surface's bounding box. Candidates are found once, on the
+            nominal mesh.
+    """
+
+    master: str
+    search: float | None = None
+
+    def specs(self):
+        return ()
+
+    def check(self, params):
+        return None
+
+    def geometry(self, params, t):
+        return {}
+
+    def _per_node(self, *_):
+        raise InputError("a mortar surface's gap is defined per slave node with its patch; "
+                         "use it in a Problem (signorini.contact.pair), not on its own")
+
+    gap = normal = project = coordinate = _per_node
+
+
+def pair(slave: str, master: str, method=None, kinematics: str = "auto",
+         search: float | None = None):
+    """A contact pair between two deformable surfaces (docs/theory.md §13).
+
+    Args:
+        slave: edge set whose nodes carry the contact multipliers (in a pair of
+            different mesh densities, take the finer surface).
+        master: edge set of the other surface (same or another body).
+        method: :class:`~signorini.contact.AugmentedLagrangian` (default),
+            :class:`~signorini.contact.Coulomb` or :class:`~signorini.contact.Penalty`.
+        kinematics: ``"linear"``, ``"finite"`` or ``"auto"`` as for a rigid obstacle.
+        search: see :class:`Mortar`.
+
+    Returns a :class:`~signorini.contact.Contact` to put in ``Problem.contact``.
+    """
+    from .methods import AugmentedLagrangian, Contact
+    if slave == master:
+        raise InputError(f"contact pair: the slave and master surfaces are both {slave!r}; "
+                         "a pair needs two different edge sets")
+    if search is not None and not float(search) > 0:
+        raise InputError(f"contact pair {slave!r}/{master!r}: search must be positive, got {search}")
+    return Contact(Mortar(master, None if search is None else float(search)), slave,
+                   AugmentedLagrangian() if method is None else method, kinematics)
+
+
+def is_mortar(contact) -> bool:
+    return isinstance(contact.obstacle, Mortar)
+
+
+# ---------------------------------------------------------------------- patches
+@dataclass(frozen=True)
+class Patches:
+    """The static pairing of a slave surface: per slave node, its patch of nodes
+    ``[prev, j, next, c_0, d_0, c_1, d_1, ...]`` (nc, 3 + 2 M) and the masks of
+    the slave segments (prev, j), (j, next) (nc, 2) and of the M candidate
+    master segments (c_k, d_k) (nc, M)."""
+
+    nodes: np.ndarray
+    slave_mask: np.ndarray
+    master_mask: np.ndarray
+
+
+def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarray,
+                  master_edges: np.ndarray, search: float | None, name: str) -> Patches:
+    """Patches of every slave node (NumPy, on the nominal reference mesh ``X``).
+
+    A master segment is a candidate of slave node j when, for one of j's slave
+    segments, it faces it (opposite normals: n_e . n_m < 0), its projection on
+    the segment's line overlaps the segment extended by half its length on each
+    side, and its distance along the normal is below ``search``."""
+    if np.intersect1d(np.unique(slave_edges), np.unique(master_edges)).size:
+        common = np.intersect1d(np.unique(slave_edges), np.unique(master_edges))
+        raise InputError(f"contact pair {name!r}: the slave and master surfaces share "
+                         f"{common.size} node(s) (first: node {int(common[0])}); a pair needs two "
+                         "surfaces that can separate")
+    nc = len(slave_nodes)
+    prev = np.full(nc, -1)
+    nxt = np.full(nc, -1)
+    pos = np.searchsorted(slave_nodes, slave_edges)
+    prev[pos[:, 1]] = slave_edges[:, 0]
+    nxt[pos[:, 0]] = slave_edges[:, 1]
+    if search is None:
+        box = X[slave_nodes].max(axis=0) - X[slave_nodes].min(axis=0)
+        search = float(max(box.max(), 1e-300))
+    P, Q = X[slave_edges[:, 0]], X[slave_edges[:, 1]]
+    d = Q - P
+    L = np.linalg.norm(d, axis=1)
+    tau = d / L[:, None]
+    n = np.stack([tau[:, 1], -tau[:, 0]], axis=1)
+    C, D = X[master_edges[:, 0]], X[master_edges[:, 1]]
+    dm = D - C
+    nm = np.stack([dm[:, 1], -dm[:, 0]], axis=1) / np.linalg.norm(dm, axis=1)[:, None]
+    # (n_slave_edges, n_master_edges) candidate matrix
+    xc = np.einsum("mk,ek->em", C, tau) - np.einsum("ek,ek->e", P, tau)[:, None]
+    xd = np.einsum("mk,ek->em", D, tau) - np.einsum("ek,ek->e", P, tau)[:, None]
+    lo, hi = np.minimum(xc, xd) / L[:, None], np.maximum(xc, xd) / L[:, None]
+    overlap = (hi > -0.5) & (lo < 1.5)
+    facing = (n @ nm.T) < 0.0
+    mid = 0.5 * (C + D)
+    dist = np.abs(np.einsum("mk,ek->em", mid, n) - np.einsum("ek,ek->e", P, n)[:, None])
+    cand = overlap & facing & (dist <= search)
+    edge_of = {(int(a), int(b)): k for k, (a, b) in enumerate(slave_edges)}
+    lists = []
+    for j in range(nc):
+        segs = set()
+        for a, b in ((prev[j], slave_nodes[j]), (slave_nodes[j], nxt[j])):
+            if a >= 0 and b >= 0:
+                segs.update(np.nonzero(cand[edge_of[(int(a), int(b))]])[0].tolist())
+        lists.append(sorted(segs))
+    M = max(1, max(len(s) for s in lists))
+    nodes = np.zeros((nc, 3 + 2 * M), dtype=np.int64)
+    smask = np.zeros((nc, 2))
+    mmask = np.zeros((nc, M))
+    for j in range(nc):
+        sj = int(slave_nodes[j])
+        nodes[j, 0] = prev[j] if prev[j] >= 0 else sj
+        nodes[j, 1] = sj
+        nodes[j, 2] = nxt[j] if nxt[j] >= 0 else sj
+        smask[j] = [prev[j] >= 0, nxt[j] >= 0]
+        nodes[j, 3:] = sj  # padding: the slave node itself, masked out
+        for k, m in enumerate(lists[j]):
+            nodes[j, 3 + 2 * k: 5 + 2 * k] = master_edges[m]
+            mmask[j, k] = 1.0
+    return Patches(nodes, smask, mmask)
+
+
+# ------------------------------------------------------------- the per-node pair
+def _safe_div(a, b):
+    ok = jnp.abs(b) > 1e-300
+    return jnp.where(ok, a / jnp.where(ok, b, 1.0), 0.0)
+
+
+class MortarNode:
+    """The master surface as seen by one slave node: the same methods as a rigid
+    obstacle (``gap``, ``coordinate``, ``normal``), of the node's patch
+    positions ``x`` (P, 2) in place of one point.
+
+    Args:
+        X: reference positions of the patch (P, 2) (at the current parameters).
+        slave_mask, master_mask: see :class:`Patches` (one node's rows).
+        linear: linearised kinematics (reference normals and overlaps).
+        axisymmetric: weight the integrals by 2 pi R (R: reference radius).
+    """
+
+    def __init__(self, X, slave_mask, master_mask, linear: bool, axisymmetric: bool):
+        self.X = X
+        self.smask = slave_mask
+        self.mmask = master_mask
+        self.linear = linear
+        self.axisymmetric = axisymmetric
+
+    def _integrals(self, x):
+        """(int N_j g, int N_j s, int N_j) over the overlaps (reference measure)."""
+        X = self.X
+        geo = X if self.linear else x
+        M = self.mmask.shape[0]
+        gsum = jnp.zeros(())
+        ssum = jnp.zeros(())
+        wsum = jnp.zeros(())
+        # slave segment (prev, j): N_j = xi; (j, next): N_j = 1 - xi
+        for e, (a, b, nj) in enumerate(((0, 1, lambda xi: xi), (1, 2, lambda xi: 1.0 - xi))):
+            pa, pb = geo[a], geo[b]
+            d = pb - pa
+            Lg = jnp.sqrt(d @ d + (1.0 - self.smask[e]))  # masked: a unit length, no NaN
+            tau = d / Lg
+            n = jnp.array([tau[1], -tau[0]])
+            L0v = X[b] - X[a]
+            L0 = jnp.sqrt(L0v @ L0v + (1.0 - self.smask[e]))
+            T0 = L0v / L0
+            for k in range(M):
+                c, dd = 3 + 2 * k, 4 + 2 * k
+                xc = (geo[c] - pa) @ tau / Lg
+                xd = (geo[dd] - pa) @ tau / Lg
+                lo = jnp.clip(jnp.minimum(xc, xd), 0.0, 1.0)
+                hi = jnp.clip(jnp.maximum(xc, xd), 0.0, 1.0)
+                length = jnp.maximum(hi - lo, 0.0) * self.smask[e] * self.mmask[k]
+                for gp in _GP:
+                    xi = lo + (hi - lo) * gp
+                    eta = _safe_div(xi - xc, xd - xc)
+                    xm = x[c] + eta * (x[dd] - x[c])
+                    xs = x[a] + xi * (x[b] - x[a])
+                    g = (xm - xs) @ n
+                    if self.linear:
+                        s = (xs - xm) @ T0
+                    else:
+                        Xm = X[c] + eta * (X[dd] - X[c])
+                        Xs = X[a] + xi * (X[b] - X[a])
+                        s = (Xs - Xm) @ T0
+                    w = 0.5 * length * L0 * nj(xi)
+                    if self.axisymmetric:
+                        w = w * TWO_PI * (X[a, 0] + xi * (X[b, 0] - X[a, 0]))
+                    gsum = gsum + w * g
+                    ssum = ssum + w * s
+                    wsum = wsum + w
+        return gsum, ssum, wsum
+
+    def gap(self, x, geo=None):
+        """The mortar-weighted gap of the slave node, g_j = int N_j g / int N_j (over
+        the overlapped part of its segments; FAR x the patch size where nothing
+        overlaps: the node is open)."""
+        gs, _, ws = self._integrals(x)
+        far = FAR * jnp.max(jnp.abs(self.X - self.X[1]))
+        return jnp.where(ws > 0.0, _safe_div(gs, ws), far)
+
+    def coordinate(self, x, geo=None):
+        """The mortar-weighted slip coordinate s_j (its increments are the slip)."""
+        _, ss, ws = self._integrals(x)
+        return _safe_div(ss, ws)
+
+    def normal(self, x, geo=None):
+        """The slave node's averaged segment normal (reference for linear kinematics)."""
+        geo_ = self.X if self.linear else x
+        n = jnp.zeros(2)
+        for e, (a, b) in enumerate(((0, 1), (1, 2))):
+            d = geo_[b] - geo_[a]
+            n = n + self.smask[e] * jnp.array([d[1], -d[0]])
+        return n / jnp.sqrt(n @ n)
