@@ -75,6 +75,7 @@ class DofLayout:
                 "file) and renumber the cells")
         self._prescribe(problem)
         self._surfaces(problem)
+        self._check_bodies(mesh)
         mask = np.ones(self.n_dof, bool)
         mask[self.prescribed] = False
         self.free = np.nonzero(mask)[0]
@@ -143,6 +144,39 @@ class DofLayout:
             off += len(nodes) * m
         self.surfaces = tuple(surfaces)
         self.n_dof = off
+
+    def _check_bodies(self, mesh):
+        """Every body (connected part of the mesh) must be held somewhere: by a
+        prescribed displacement or by a contact (its nodes on a contact surface,
+        or the master surface of a pair); otherwise its rigid motion is free and
+        the first tangent singular."""
+        import scipy.sparse as sp
+        from scipy.sparse.csgraph import connected_components
+        c = self.conn
+        k = c.shape[1]
+        rows = np.repeat(c, k, axis=1).ravel()
+        cols = np.tile(c, (1, k)).ravel()
+        g = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(self.n_nodes,) * 2)
+        n_parts, label = connected_components(g, directed=False)
+        if n_parts == 1:
+            return
+        held = np.zeros(self.n_nodes, bool)
+        held[self.prescribed // self.dim] = True
+        for s in self.surfaces:
+            held[s.nodes] = True
+            if s.patches is not None:  # the master segments that face a slave node
+                nc, M = s.patches.master_mask.shape
+                held[s.patches.nodes[:, 3:].reshape(nc, M, 2)[s.patches.master_mask > 0]] = True
+        for part in range(n_parts):
+            if not held[label == part].any():
+                node = int(np.argmax(label == part))
+                names = [n for n, v in mesh.node_sets.items()
+                         if v.size and np.all(label[v] == part) and np.sum(label == part) == v.size]
+                what = f"body {names[0]!r}" if names else f"the body of node {node}"
+                raise InputError(
+                    f"{what} (at {mesh.nodes[node].round(6).tolist()}) has no support and no contact: "
+                    "nothing holds its rigid motion. Prescribe some of its displacements (Fixed) or put "
+                    "it in contact (a Contact on its boundary, or a contact pair with another body)")
 
     def _pair_patches(self, mesh, c, edges, nodes):
         """The patches of a contact pair's slave nodes (:func:`signorini.contact.mortar.build_patches`)."""

@@ -1,0 +1,217 @@
+"""Two deformable bodies in contact: the mortar pair (docs/theory.md §13).
+
+The contact patch test, DDM = FD and adjoint = DDM through frictional two-body
+contact, the pair against a rigid obstacle, swapping the surfaces, bad input."""
+
+import dataclasses
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import signorini as sg
+from signorini.contact.mortar import pair
+from signorini.errors import InputError
+from signorini.fem.loads import Fixed, Pressure, Traction
+from signorini.fem.mesh import merge, rectangle
+from signorini.materials import Bodies, LinearElastic, NeoHooke
+from signorini.problems.cylinders import cylinders_problem
+
+P, Q = 1.0, 0.2
+
+
+def patch_problem(n_low, n_up, friction=False, swap=False, kinematics="auto", material=None):
+    """Two blocks on a flat interface y = 0.5 with n_low and n_up cells along it,
+    under a uniform pressure (and with friction a uniform shear Q < mu P, with the
+    side tractions of the uniform stress state)."""
+    low = rectangle(np.linspace(0, 1, n_low + 1), np.linspace(0, 0.5, 4))
+    up = rectangle(np.linspace(0, 1, n_up + 1), np.linspace(0.5, 1.0, 4))
+    mesh = merge({"low": low, "up": up})
+    params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "p": P, "mu": 0.5, "eps_t": 100.0, "q": Q, "mq": -Q}
+    slave, master = ("low.top", "up.bottom") if swap else ("up.bottom", "low.top")
+    if friction:
+        mesh = dataclasses.replace(mesh, node_sets={**mesh.node_sets, "corner": [0]})
+        fixed = [Fixed("low.bottom", 1), Fixed("corner", 0)]
+        loads = [Pressure("up.top", "p"), Traction("up.top", ("q", 0.0)), Traction("low.bottom", ("mq", 0.0)),
+                 Traction("up.right", (0.0, "q")), Traction("up.left", (0.0, "mq")),
+                 Traction("low.right", (0.0, "q")), Traction("low.left", (0.0, "mq"))]
+        method = sg.Coulomb()
+    else:
+        fixed = [Fixed("low.bottom", 1), Fixed("low.left", 0), Fixed("up.left", 0)]
+        loads = [Pressure("up.top", "p")]
+        method = sg.AugmentedLagrangian()
+    return sg.Problem(mesh, material or LinearElastic(), params, fixed=fixed, loads=loads,
+                      contact=[pair(slave, master, method, kinematics)])
+
+
+@pytest.mark.parametrize("friction", [False, True], ids=["frictionless", "friction"])
+@pytest.mark.parametrize("ratio", [(1, 1), (2, 3), (1, 3), (3, 1)], ids=["1:1", "2:3", "1:3", "3:1"])
+def test_patch_test_uniform_stress(ratio, friction):
+    """Non-matching meshes on a flat interface transmit a uniform pressure (and a
+    uniform shear in stick) exactly: every cell's stress is the uniform one to
+    round-off, the multipliers are the tractions, no node slips."""
+    pb = patch_problem(2 * ratio[0], 2 * ratio[1], friction)
+    sol = sg.solve(pb, steps=2 if friction else 1)
+    S = np.asarray(sol.stress()[0])
+    assert np.abs(S[:, 1, 1] + P).max() <= 1e-10 * P
+    assert np.abs(S[:, 0, 0]).max() <= 1e-10 * P
+    assert np.abs(S[:, 0, 1] - (Q if friction else 0.0)).max() <= 1e-10 * P
+    c = sol.contact()
+    assert np.allclose(c["p_N"], P, rtol=0, atol=1e-10)
+    if friction:
+        assert np.allclose(np.abs(c["p_T"]), Q, rtol=0, atol=1e-10)
+        assert set(c["status"]) == {"stick"}
+
+
+def test_patch_test_finite_strain():
+    """With finite kinematics (neo-Hooke bodies, current normals and overlaps) the
+    frictionless patch test holds too: a uniform Cauchy stress."""
+    pb = patch_problem(2, 6, kinematics="finite", material=NeoHooke())
+    S = np.asarray(sg.solve(pb, steps=2).stress()[0])
+    for a, b in ((0, 0), (1, 1), (0, 1)):
+        assert np.ptp(S[:, a, b]) <= 1e-10 * P
+    assert abs(S[0, 1, 1] + P) < 1e-2  # nominal pressure P, Cauchy within the strain
+
+
+def test_swapping_the_surfaces():
+    """Slave and master exchanged: the same (exact) solution of the patch test,
+    displacements included."""
+    u = [sg.solve(patch_problem(4, 6, True, swap=s), steps=2).displacement() for s in (False, True)]
+    assert np.abs(u[0] - u[1]).max() <= 1e-10 * np.abs(u[0]).max()
+
+
+def test_bodies_materials_per_body():
+    """Bodies: each body its own E; frictionless patch test with E2 = 30 E1 stays
+    uniform, and each body's strain follows its own modulus."""
+    pb = patch_problem(4, 6)
+    pb = dataclasses.replace(pb, material=Bodies({"low": LinearElastic(E="E1"), "up": LinearElastic(E="E2")}),
+                             params={**pb.params, "E1": 100.0, "E2": 3000.0})
+    sol = sg.solve(pb)
+    S = np.asarray(sol.stress()[0])
+    assert np.abs(S[:, 1, 1] + P).max() <= 1e-10
+    u = sol.displacement()
+    top_low = pb.mesh.node_sets["low.top"]
+    top_up = pb.mesh.node_sets["up.top"]
+    # plane-strain compression of each 0.5-high block: (1 - nu^2) P h / E
+    d_low = -u[top_low, 1].mean()
+    d_up = -(u[top_up, 1].mean() - u[pb.mesh.node_sets["up.bottom"], 1].mean())
+    assert d_low == pytest.approx(0.91 * P * 0.5 / 100.0, rel=1e-9)
+    assert d_up == pytest.approx(0.91 * P * 0.5 / 3000.0, rel=1e-9)
+
+
+@pytest.fixture(scope="module")
+def cylinders():
+    """The frictional two-cylinder problem, small mesh: P then Q = mu P / 2."""
+    pb = cylinders_problem({"mu": 0.3, "Q": 0.015, "E2": 150.0}, n_fine=6)
+    names = ["R1", "R2", "E1", "E2", "P", "mu", "Q"]
+    return pb, names, sg.solve(pb, steps=4, wrt=names)
+
+
+def test_cylinders_ddm_equals_fd(cylinders):
+    """DDM = central FD of p_N and p_T for the shape of either body, the moduli of
+    both, the loads and mu, through the frictional path (stick and slip nodes)."""
+    pb, names, sol = cylinders
+    c = sol.contact()
+    st = set(c["status"][c["p_N"] > 0])
+    assert {"stick", "slip"} <= st
+    tight = sg.NewtonOptions(rtol=1e-13, step_tol=1e-11)
+    for n in names:
+        h = 1e-4 * abs(pb.params[n])
+        f = [sg.solve(pb.with_params(**{n: pb.params[n] + s * h}), steps=4, options=tight).contact()
+             for s in (1, -1)]
+        for k in ("p_N", "p_T"):
+            fd = (f[0][k] - f[1][k]) / (2 * h)
+            ddm = c[f"d{k}_d{n}"]
+            assert np.abs(ddm - fd).max() <= 1e-6 * np.abs(c["dp_N_d" + n]).max(), (n, k)
+
+
+def test_cylinders_adjoint_equals_ddm(cylinders):
+    """The adjoint gradient of a response of the tractions = the DDM's, for every
+    parameter and (projected on a design velocity) every nodal coordinate."""
+    pb, names, _ = cylinders
+
+    def response(model):
+        def f(w, p, t):
+            c = model.contact_fields(w, p, t, 0)
+            return jnp.sum(c["area"] * (c["p_N"] ** 2 + c["p_T"] * c["p_N"]))
+        return f
+    ga = sg.gradient(pb, response, wrt=names, steps=4, method=sg.Adjoint())
+    gd = sg.gradient(pb, response, wrt=names, steps=4, method=sg.DDM())
+    for n in names:
+        assert ga[n] == pytest.approx(gd[n], rel=1e-10)
+    gn = sg.gradient(pb, response, wrt=["nodes"], steps=4, method=sg.Adjoint())
+    for n in ("R1", "R2"):
+        assert np.sum(np.asarray(gn["nodes"]) * pb.shape[n]) == pytest.approx(gd[n], rel=1e-10)
+
+
+def test_cylinders_against_hertz():
+    """Frictionless cylinders of different radii and moduli: p0 within 1 % and the
+    contact half-width within one cell of Hertz's."""
+    from signorini.problems.cylinders import analytical
+    v = {"R1": 1.0, "R2": 1.5, "E1": 100.0, "E2": 200.0}
+    pb = cylinders_problem(v, n_fine=16)
+    c = sg.solve(pb).contact()
+    h = analytical(**{k: pb.params[k] for k in ("P", "R1", "R2", "E1", "E2", "nu1", "nu2")})
+    assert c["p_N"].max() == pytest.approx(h["p0"], rel=1e-2)
+    x = c["x_ref"][:, 0]
+    closed = x[c["p_N"] > 0]
+    cell = 1.5 * h["b"] / 16 * 1.5  # the fine cells (grid sized by the nominal b0, not this b)
+    assert abs(closed.max() - h["b"]) < cell and abs(-closed.min() - h["b"]) < cell
+
+
+def test_stiff_body_reproduces_rigid_die():
+    """A very stiff flat block pressed (displacement-controlled, sticking friction)
+    on a block = the rigid flat die of the library: the block's displacements, its
+    support reactions and their sensitivities to E and nu within the stiffness
+    ratio. (The multipliers themselves differ by design: the pair's are the nodal
+    values of the traction field, the rigid obstacle's nodal forces over areas.)"""
+    low = rectangle(np.linspace(0, 1, 9), np.linspace(0, 0.5, 5))
+    up = rectangle(np.linspace(0, 1, 6), np.linspace(0.5, 0.7, 3))
+    mesh = merge({"low": low, "up": up})
+    params = {"E": 100.0, "nu": 0.3, "Es": 1e8, "eps": 200.0, "eps_t": 200.0, "mu": 5.0, "d": -0.01}
+    fixed = [Fixed("low.bottom", 0), Fixed("low.bottom", 1)]
+    method = sg.Coulomb()
+    stiff = sg.Problem(mesh, Bodies({"low": LinearElastic(), "up": LinearElastic(E="Es")}), params,
+                       fixed=fixed + [Fixed("up.top", 0), Fixed("up.top", 1, "d")],
+                       contact=[pair("low.top", "up.bottom", method)])
+    rigid = sg.Problem(low, LinearElastic(), params, fixed=[Fixed("bottom", 0), Fixed("bottom", 1)],
+                       contact=[sg.Contact(sg.Line((0.0, 0.5), (0.0, -1.0), (0.0, "d")), "top", method)])
+    names = ["E", "nu"]
+    a = sg.solve(stiff, steps=2, wrt=names)
+    b = sg.solve(rigid, steps=2, wrt=names)
+    assert set(a.contact()["status"]) == {"stick"} and set(b.contact()["status"]) == {"stick"}
+    n = low.n_nodes
+    ua, ub = a.displacement()[:n], b.displacement()
+    assert np.abs(ub[:, 0]).max() > 0.05 * np.abs(ub[:, 1]).max()  # friction holds the expansion
+    assert np.abs(ua - ub).max() <= 1e-5 * np.abs(ub).max()
+    da, db = a.displacement_sensitivity("nu")[:n], b.displacement_sensitivity("nu")
+    assert np.abs(da - db).max() <= 1e-5 * np.abs(db).max()  # (u does not depend on E here)
+    bottom = low.node_sets["bottom"]
+
+    def at_bottom(r, m):
+        return np.asarray(r)[: 2 * m].reshape(-1, 2)[bottom]
+    for r, s in ((a.reactions(), b.reactions()),) + tuple(
+            (a.reaction_sensitivity(k), b.reaction_sensitivity(k)) for k in names):
+        ra, rb = at_bottom(r, n), at_bottom(s, n)
+        assert np.abs(ra - rb).max() <= 1e-5 * np.abs(rb).max()
+
+
+def test_bad_pairs():
+    low = rectangle(np.linspace(0, 1, 3), np.linspace(0, 0.5, 3))
+    up = rectangle(np.linspace(0, 1, 4), np.linspace(0.5, 1.0, 3))
+    mesh = merge({"low": low, "up": up})
+    params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "p": 1.0}
+    fixed = [Fixed("low.bottom", 1), Fixed("low.left", 0), Fixed("up.left", 0)]
+    with pytest.raises(InputError, match="both 'low.top'"):
+        pair("low.top", "low.top")
+    with pytest.raises(InputError, match="faces any slave"):  # the two tops never face each other
+        sg.solve(sg.Problem(mesh, LinearElastic(), params, fixed=fixed,
+                            contact=[pair("up.top", "low.top")]))
+    with pytest.raises(InputError, match="body 'up'.*no support and no contact"):
+        sg.solve(sg.Problem(mesh, LinearElastic(), params, fixed=fixed[:2],
+                            loads=[Pressure("up.top", "p")]))
+    with pytest.raises(InputError, match="no node set 'upper'"):
+        sg.solve(sg.Problem(mesh, Bodies({"low": LinearElastic(), "upper": LinearElastic()}), params,
+                            fixed=fixed, contact=[pair("up.bottom", "low.top")]))
+    with pytest.raises(InputError, match="same law"):
+        Bodies({"low": LinearElastic(), "up": NeoHooke()})
