@@ -87,7 +87,8 @@ def test_min_step_floor(small):
 @pytest.mark.timeout(300)
 def test_cli_finite_strain_huge_load_fails_with_summary(tmp_path, capsys):
     out = tmp_path / "p1000"
-    assert main(["hertz", "--finite-strain", "--set", "P=1000", "--no-fd", "-q", "--out", str(out)]) == 1
+    assert main(["hertz", "--finite-strain", "--set", "P=1000", "--no-fd", "-q", "--max-iter", "8",
+                 "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert "the solve failed" in err and "Traceback" not in err
     s = json.loads((out / "summary.json").read_text())

@@ -93,7 +93,7 @@ def _rel(a, b):
     return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
 
 
-@pytest.mark.parametrize("case", ["hertz", "friction", "forging"])
+@pytest.mark.parametrize("case", ["hertz", "friction", pytest.param("forging", marks=pytest.mark.slow)])
 def test_whole_mesh_and_kind_programs_give_the_same_solution(monkeypatch, case):
     """A mesh is evaluated by its own whole-mesh programs (small meshes) or by the
     programs of its element and contact kinds (large ones): the two give the

@@ -37,6 +37,7 @@ import numpy as np
 
 from .._jax import jnp
 from ..errors import InputError
+from .methods import AugmentedLagrangian, Contact
 
 TWO_PI = 2.0 * np.pi
 #: Gauss points of the 2-point rule on [0, 1]
@@ -92,7 +93,6 @@ def pair(slave: str, master: str, method=None, kinematics: str = "auto",
 
     Returns a :class:`~signorini.contact.Contact` to put in ``Problem.contact``.
     """
-    from .methods import AugmentedLagrangian, Contact
     if slave == master:
         raise InputError(f"contact pair: the slave and master surfaces are both {slave!r}; "
                          "a pair needs two different edge sets")

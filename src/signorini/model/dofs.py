@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from .._jax import jax, jnp
 from ..contact.area import check_edges, contact_nodes, nodal_normals
@@ -150,8 +152,6 @@ class DofLayout:
         prescribed displacement or by a contact (its nodes on a contact surface,
         or the master surface of a pair); otherwise its rigid motion is free and
         the first tangent singular."""
-        import scipy.sparse as sp
-        from scipy.sparse.csgraph import connected_components
         c = self.conn
         k = c.shape[1]
         rows = np.repeat(c, k, axis=1).ravel()

@@ -39,6 +39,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._jax import jnp
+
 from ..contact import AugmentedLagrangian, Coulomb
 from ..contact.mortar import pair
 from ..errors import InputError, UnknownParameterError
@@ -236,11 +238,9 @@ def _whole(t):
 
 def _first(t):
     """P over the first half of the path."""
-    from .._jax import jnp
     return jnp.minimum(2.0 * t, 1.0)
 
 
 def _second(t):
     """Q over the second half of the path."""
-    from .._jax import jnp
     return jnp.maximum(2.0 * t - 1.0, 0.0)
