@@ -33,8 +33,8 @@ _WHERE = {
     **dict.fromkeys(("NewtonOptions",), "algorithms.newton"),
     **dict.fromkeys(("Solution",), "algorithms.solution"),
     **dict.fromkeys(("Start", "solve"), "algorithms.stepping"),
-    **dict.fromkeys(("AugmentedLagrangian", "Contact", "Coulomb", "Penalty", "equivalent_areas"),
-                    "contact"),
+    **dict.fromkeys(("AugmentedLagrangian", "Contact", "Coulomb", "Penalty", "equivalent_areas",
+                     "pair"), "contact"),
     **dict.fromkeys(("Circle", "Line"), "contact.obstacles"),
     **dict.fromkeys(("finite_difference",), "design.finite_differences"),
     **dict.fromkeys(("Gradient", "gradient"), "design.gradient"),
@@ -45,9 +45,9 @@ _WHERE = {
     **dict.fromkeys(("FBar", "Standard"), "fem.element"),
     **dict.fromkeys(("Axisymmetric", "PlaneStrain"), "fem.kinematics"),
     **dict.fromkeys(("Fixed", "Pressure", "Traction"), "fem.loads"),
-    **dict.fromkeys(("Mesh", "graded_coordinates", "rectangle"), "fem.mesh"),
+    **dict.fromkeys(("Mesh", "graded_coordinates", "merge", "rectangle"), "fem.mesh"),
     **dict.fromkeys(("read_mesh",), "fem.meshfile"),
-    **dict.fromkeys(("J2Plasticity", "LinearElastic", "NeoHooke"), "materials"),
+    **dict.fromkeys(("Bodies", "J2Plasticity", "LinearElastic", "NeoHooke"), "materials"),
     **dict.fromkeys(("Problem",), "model.problem"),
     **dict.fromkeys(("write_pvd", "write_vtu"), "post.files"),
     **dict.fromkeys(("DDM", "Adjoint", "FiniteDifferences"), "sensitivity.methods"),
@@ -55,11 +55,11 @@ _WHERE = {
 
 __all__ = [
     # the problem: mesh, kinematics, element, material, supports and loads, contact
-    "Mesh", "rectangle", "graded_coordinates", "read_mesh",
+    "Mesh", "rectangle", "graded_coordinates", "read_mesh", "merge",
     "PlaneStrain", "Axisymmetric", "Standard", "FBar",
-    "LinearElastic", "NeoHooke", "J2Plasticity",
+    "LinearElastic", "NeoHooke", "J2Plasticity", "Bodies",
     "Fixed", "Pressure", "Traction",
-    "Circle", "Line", "Contact", "AugmentedLagrangian", "Coulomb", "Penalty", "equivalent_areas",
+    "Circle", "Line", "Contact", "AugmentedLagrangian", "Coulomb", "Penalty", "equivalent_areas", "pair",
     "Problem",
     # solving
     "solve", "NewtonOptions", "Start", "Solution",

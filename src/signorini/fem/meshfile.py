@@ -89,7 +89,9 @@ def read_mesh(path) -> "Mesh | Mesh3D":
     Quadrilateral cells become the mesh; every named physical group of line
     elements (gmsh ``$PhysicalNames``) becomes an edge set (oriented
     counter-clockwise from its cell) and a node set of the same name; named
-    groups of vertex elements become node sets. Cells are renumbered
+    groups of vertex elements become node sets, and named groups of
+    quadrilaterals (physical surfaces: the bodies of a file with several) the
+    node set of their cells (what :class:`~signorini.materials.Bodies` names). Cells are renumbered
     counter-clockwise if needed. Nodes that belong to no quadrilateral (gmsh
     writes one for every geometry point, e.g. the centre of an arc) are
     dropped and the remaining nodes renumbered in file order, since they
@@ -195,6 +197,8 @@ def _add_set(path, name, kind, data, used, new, nodes, boundary, edge_sets, node
         node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
     elif kind == "vertex":
         node_sets[name] = np.union1d(node_sets.get(name, []), data).astype(np.int64)
+    elif kind == "quad":  # a physical surface (a body): the node set of its cells
+        node_sets[name] = np.union1d(node_sets.get(name, []), data.ravel()).astype(np.int64)
 
 
 #: the 3-D cells read, and the face cells that name their boundary sets
