@@ -215,3 +215,28 @@ def test_bad_pairs():
                             fixed=fixed, contact=[pair("up.bottom", "low.top")]))
     with pytest.raises(InputError, match="same law"):
         Bodies({"low": LinearElastic(), "up": NeoHooke()})
+
+
+@pytest.mark.parametrize("friction", [False, True], ids=["frictionless", "friction"])
+def test_axisymmetric_patch_test(friction):
+    """Axisymmetry: two coaxial cylinders meeting on a plane with non-matching
+    meshes (2:3) under a uniform pressure: the integrals weighted by 2 pi R give
+    the uniform stress (sigma_zz = -p, the others 0) to round-off, the
+    multipliers equal p; with friction every node sticks without shear."""
+    low = rectangle(np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))
+    up = rectangle(np.linspace(0, 1, 7), np.linspace(0.5, 1.0, 4))
+    mesh = merge({"low": low, "up": up})
+    params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "p": P, "mu": 0.5, "eps_t": 100.0}
+    pb = sg.Problem(mesh, LinearElastic(), params, kinematics=sg.Axisymmetric(),
+                    fixed=[Fixed("low.bottom", 1), Fixed("low.left", 0), Fixed("up.left", 0)],
+                    loads=[Pressure("up.top", "p")],
+                    contact=[pair("up.bottom", "low.top", sg.Coulomb() if friction else None)])
+    sol = sg.solve(pb, steps=2 if friction else 1)
+    S = np.asarray(sol.stress()[0])
+    assert np.abs(S[:, 1, 1] + P).max() <= 1e-10 * P
+    for a, b in ((0, 0), (0, 1), (2, 2)):
+        assert np.abs(S[:, a, b]).max() <= 1e-10 * P
+    c = sol.contact()
+    assert np.allclose(c["p_N"], P, rtol=0, atol=1e-10)
+    if friction:
+        assert set(c["status"]) == {"stick"} and np.abs(c["p_T"]).max() <= 1e-10
