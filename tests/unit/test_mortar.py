@@ -125,6 +125,29 @@ def test_cylinders_ddm_equals_fd(cylinders):
             assert np.abs(ddm - fd).max() <= 1e-6 * np.abs(c["dp_N_d" + n]).max(), (n, k)
 
 
+def test_patch_adjoint_equals_ddm():
+    """The adjoint gradient of a response of the tractions = the DDM's through a
+    frictional pair (the 2:3 patch, load and friction parameters), and projected
+    on a design velocity, the adjoint with respect to every nodal coordinate."""
+    pb = patch_problem(4, 6, friction=True)
+    V = np.zeros_like(pb.mesh.nodes)
+    V[:, 1] = pb.mesh.nodes[:, 1] * pb.mesh.nodes[:, 0]
+    pb = dataclasses.replace(pb, shape={"s": V}, shape_nominal={"s": 0.0}, params={**pb.params, "s": 0.0})
+    names = ["E", "p", "q", "s"]
+
+    def response(model):
+        def f(w, p, t):
+            c = model.contact_fields(w, p, t, 0)
+            return jnp.sum(c["area"] * (c["p_N"] ** 2 + c["p_T"] * c["p_N"]))
+        return f
+    ga = sg.gradient(pb, response, wrt=names + ["nodes"], steps=2, method=sg.Adjoint())
+    gd = sg.gradient(pb, response, wrt=names, steps=2, method=sg.DDM())
+    for n in names:
+        assert ga[n] == pytest.approx(gd[n], rel=1e-10, abs=1e-12 * abs(gd["p"]))
+    assert np.sum(np.asarray(ga["nodes"]) * V) == pytest.approx(gd["s"], rel=1e-10)
+
+
+@pytest.mark.slow  # 6 min with an empty cache (compiling); test_patch_adjoint_equals_ddm covers it
 def test_cylinders_adjoint_equals_ddm(cylinders):
     """The adjoint gradient of a response of the tractions = the DDM's, for every
     parameter and (projected on a design velocity) every nodal coordinate."""
