@@ -147,7 +147,6 @@ def test_patch_adjoint_equals_ddm():
     assert np.sum(np.asarray(ga["nodes"]) * V) == pytest.approx(gd["s"], rel=1e-10)
 
 
-@pytest.mark.slow  # 6 min with an empty cache (compiling); test_patch_adjoint_equals_ddm covers it
 def test_cylinders_adjoint_equals_ddm(cylinders):
     """The adjoint gradient of a response of the tractions = the DDM's, for every
     parameter and (projected on a design velocity) every nodal coordinate."""

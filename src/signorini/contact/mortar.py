@@ -212,7 +212,10 @@ class MortarNode:
         """(int N_j g, int N_j s, int N_j) over the overlaps (reference measure)."""
         X = self.X
         geo = X if self.linear else x
-        M = self.mmask.shape[0]
+        C, D = geo[3::2], geo[4::2]  # (M, 2) candidate master segments
+        xC, xD = x[3::2], x[4::2]
+        XC, XD = X[3::2], X[4::2]
+        gp = jnp.asarray(_GP)[None, :]  # (1, 2) Gauss points, broadcast over the candidates
         gsum = jnp.zeros(())
         ssum = jnp.zeros(())
         wsum = jnp.zeros(())
@@ -226,31 +229,28 @@ class MortarNode:
             L0v = X[b] - X[a]
             L0 = jnp.sqrt(L0v @ L0v + (1.0 - self.smask[e]))
             T0 = L0v / L0
-            for k in range(M):
-                c, dd = 3 + 2 * k, 4 + 2 * k
-                xc = (geo[c] - pa) @ tau / Lg
-                xd = (geo[dd] - pa) @ tau / Lg
-                lo = jnp.clip(jnp.minimum(xc, xd), 0.0, 1.0)
-                hi = jnp.clip(jnp.maximum(xc, xd), 0.0, 1.0)
-                length = jnp.maximum(hi - lo, 0.0) * self.smask[e] * self.mmask[k]
-                for gp in _GP:
-                    xi = lo + (hi - lo) * gp
-                    eta = _safe_div(xi - xc, xd - xc)
-                    xm = x[c] + eta * (x[dd] - x[c])
-                    xs = x[a] + xi * (x[b] - x[a])
-                    g = (xm - xs) @ n
-                    if self.linear:
-                        s = (xs - xm) @ T0
-                    else:
-                        Xm = X[c] + eta * (X[dd] - X[c])
-                        Xs = X[a] + xi * (X[b] - X[a])
-                        s = (Xs - Xm) @ T0
-                    w = 0.5 * length * L0 * nj(xi)
-                    if self.axisymmetric:
-                        w = w * TWO_PI * (X[a, 0] + xi * (X[b, 0] - X[a, 0]))
-                    gsum = gsum + w * g
-                    ssum = ssum + w * s
-                    wsum = wsum + w
+            xc = ((C - pa) @ tau / Lg)[:, None]  # (M, 1)
+            xd = ((D - pa) @ tau / Lg)[:, None]
+            lo = jnp.clip(jnp.minimum(xc, xd), 0.0, 1.0)
+            hi = jnp.clip(jnp.maximum(xc, xd), 0.0, 1.0)
+            length = jnp.maximum(hi - lo, 0.0) * self.smask[e] * self.mmask[:, None]
+            xi = lo + (hi - lo) * gp  # (M, 2)
+            eta = _safe_div(xi - xc, xd - xc)
+            xm = xC[:, None, :] + eta[..., None] * (xD - xC)[:, None, :]  # (M, 2, 2)
+            xs = x[a] + xi[..., None] * (x[b] - x[a])
+            g = (xm - xs) @ n
+            if self.linear:
+                s = (xs - xm) @ T0
+            else:
+                Xm = XC[:, None, :] + eta[..., None] * (XD - XC)[:, None, :]
+                Xs = X[a] + xi[..., None] * (X[b] - X[a])
+                s = (Xs - Xm) @ T0
+            w = 0.5 * length * L0 * nj(xi)
+            if self.axisymmetric:
+                w = w * TWO_PI * (X[a, 0] + xi * (X[b, 0] - X[a, 0]))
+            gsum = gsum + jnp.sum(w * g)
+            ssum = ssum + jnp.sum(w * s)
+            wsum = wsum + jnp.sum(w)
         return gsum, ssum, wsum
 
     def gap(self, x, geo=None):
