@@ -262,3 +262,53 @@ def test_axisymmetric_patch_test(friction):
     assert np.allclose(c["p_N"], P, rtol=0, atol=1e-10)
     if friction:
         assert set(c["status"]) == {"stick"} and np.abs(c["p_T"]).max() <= 1e-10
+
+
+def _punch_problem(kin, Q=None, c=(0.0, 0.0)):
+    """A narrow block (3 cells over 0.5) pushed by (v, -d) t into a wider one
+    (4 cells over 1: non-matching) with Coulomb friction, the lower bottom
+    clamped; with Q and c the whole problem moved rigidly (x -> Q x + c): every
+    prescribed displacement is a vector rotated by Q."""
+    low = rectangle(np.linspace(0, 1, 9), np.linspace(0, 0.5, 4))
+    up = rectangle(np.linspace(0.25, 0.75, 7), np.linspace(0.5, 0.8, 4))
+    mesh = merge({"low": low, "up": up})
+    top = (lambda p: p["v"], lambda p: -p["d"])
+    if Q is not None:
+        mesh = dataclasses.replace(mesh, nodes=mesh.nodes @ Q.T + np.asarray(c))
+        top = tuple((lambda i: lambda p: Q[i, 0] * p["v"] - Q[i, 1] * p["d"])(i) for i in (0, 1))
+    material = LinearElastic() if kin == "linear" else NeoHooke()
+    params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "mu": 0.3, "eps_t": 100.0, "d": 0.01, "v": 0.003}
+    return sg.Problem(mesh, material, params,
+                      fixed=[Fixed("low.bottom", 0), Fixed("low.bottom", 1),
+                             Fixed("up.top", 0, top[0]), Fixed("up.top", 1, top[1])],
+                      contact=[pair("up.bottom", "low.top", sg.Coulomb(), kin)])
+
+
+@pytest.mark.parametrize("kin", ["linear", "finite"])
+def test_rigid_motion_of_a_pair_changes_nothing(kin):
+    """Rotating (0.7 rad) and translating the whole two-body problem rotates the
+    displacements and leaves the tractions, the stick/slip status and their
+    sensitivities (E, mu, d, v) unchanged, to round-off; the path has stick and slip."""
+    th = 0.7
+    Q = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    names = ["E", "mu", "d", "v"]
+    ref = sg.solve(_punch_problem(kin), steps=3, wrt=names)
+    rot = sg.solve(_punch_problem(kin, Q, (2.0, -1.0)), steps=3, wrt=names)
+    assert [i.t for i in rot.increments] == [i.t for i in ref.increments]
+    cr, co = ref.contact(), rot.contact()
+    assert (cr["status"] == "stick").sum() >= 1 and (cr["status"] == "slip").sum() >= 1, cr["status"]
+    np.testing.assert_array_equal(co["status"], cr["status"])
+    scale = np.abs(cr["p_N"]).max()
+    assert scale > 0
+    for k in ("p_N", "p_T"):
+        np.testing.assert_allclose(co[k], cr[k], rtol=0, atol=1e-10 * scale, err_msg=k)
+        for n in names:
+            key = f"d{k}_d{n}"
+            s = np.abs(cr[key]).max() + scale / abs(ref.params[n])
+            np.testing.assert_allclose(co[key], cr[key], rtol=0, atol=1e-9 * s, err_msg=key)
+    u = ref.displacement()
+    np.testing.assert_allclose(rot.displacement(), u @ Q.T, rtol=0, atol=1e-10 * np.abs(u).max())
+    for n in names:
+        du = ref.displacement_sensitivity(n)
+        np.testing.assert_allclose(rot.displacement_sensitivity(n), du @ Q.T, rtol=0,
+                                   atol=1e-9 * np.abs(u).max() / abs(ref.params[n]), err_msg=n)
