@@ -128,19 +128,25 @@ class Solution:
         With history (friction) the residual also depends on the state before the
         increment, so its tangent D state_n / D phi enters the JVP (docs/theory.md §1)."""
         self._check_name(name)
+        return self.reaction_sensitivities(i)[name]
+
+    def reaction_sensitivities(self, i: int = -1) -> dict:
+        """{name: (n_nodes, dim) DDM sensitivity of :meth:`reactions`} for every
+        parameter of the solve, in one pass."""
         m = self.model
-        r = np.zeros(m.dim * m.n_nodes)
         if m.has_history:
-            inc = self._inc(i)
-            state = self.state_before(i)[0]
-            cases = m.compiled.cases(to_device(inc.w), self.jax_params, inc.t, state) if m.has_contact_history else None
-            d = self.history_response(lambda w, p, t, st: m.residual(w, p, t, st, cases)[m.prescribed],
-                                      i)[1][name]
-            r[m.prescribed] = np.asarray(d)
-            return r.reshape(-1, m.dim)
-        _, d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))
-        r[m.prescribed] = d[name]
-        return r.reshape(-1, m.dim)
+            def rows(w, p, t, st):  # the friction cases at w itself: one program for every increment
+                cases = jax.lax.stop_gradient(m.cases(w, p, t, st)) if m.has_contact_history else None
+                return m.residual(w, p, t, st, cases)[m.prescribed]
+            d = self.history_response(rows, i, key=("reactions-history",))[1]
+        else:
+            d = self.response(lambda w, p, t: m.residual(w, p, t)[m.prescribed], i, key=("reactions",))[1]
+        out = {}
+        for name in self.names:
+            r = np.zeros(m.dim * m.n_nodes)
+            r[m.prescribed] = np.asarray(d[name])
+            out[name] = r.reshape(-1, m.dim)
+        return out
 
     def state_before(self, i: int = -1):
         """(state_n, its sensitivities) at the start of increment i (path-dependent

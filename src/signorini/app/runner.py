@@ -108,7 +108,24 @@ def summary_header(status: str, solution=None, reason: str = "") -> dict:
         head["converged_increments"] = len(solution.increments)
         # increments with points on a switch of a non-smooth law (docs/theory.md §11)
         head["derivative_switches"] = nonsmooth.summary(solution)
+        if any(s.patches is not None for s in solution.model.surfaces):
+            # contact pairs: increments whose closed slave nodes changed master partners
+            head["partner_changes"] = nonsmooth.partner_changes(solution)
+        bodies = io.bodies(solution)
+        if len(bodies) > 1:
+            head["bodies"] = body_summary(solution, bodies)
     return head
+
+
+def body_summary(solution, bodies) -> dict:
+    """Per body of a mesh of several: its nodes and cells, the resultant of its
+    supports' reactions and its largest displacement, at the last increment."""
+    u = solution.displacement()
+    r = solution.reactions()
+    return {name: {"nodes": int(nodes.size), "cells": int(cells.size),
+                   "support_force": r[nodes].sum(axis=0).tolist(),
+                   "max_displacement": float(np.linalg.norm(u[nodes], axis=1).max())}
+            for name, nodes, cells in bodies}
 
 
 def write_partial(out: Path, solution, stem: str, reason: str, extra: dict | None = None) -> dict:

@@ -57,10 +57,17 @@ class Mortar:
             segment is a candidate partner of a slave segment; None: the size of
             the slave surface's bounding box. Candidates are found once, on the
             nominal mesh.
+        slide: the largest tangential travel of the master surface along the
+            slave over the path (finite sliding): a master segment is a
+            candidate when it overlaps the slave segment extended by this much on
+            each side (besides half the segment's length). None: small sliding
+            (half a segment). A converged increment whose partners left the
+            candidates is reported (:func:`partner_report`).
     """
 
     master: str
     search: float | None = None
+    slide: float | None = None
 
     def specs(self):
         return ()
@@ -79,7 +86,7 @@ class Mortar:
 
 
 def pair(slave: str, master: str, method=None, kinematics: str = "auto",
-         search: float | None = None):
+         search: float | None = None, slide: float | None = None):
     """A contact pair between two deformable surfaces (docs/theory.md §13).
 
     Args:
@@ -89,7 +96,9 @@ def pair(slave: str, master: str, method=None, kinematics: str = "auto",
         method: :class:`~signorini.contact.AugmentedLagrangian` (default),
             :class:`~signorini.contact.Coulomb` or :class:`~signorini.contact.Penalty`.
         kinematics: ``"linear"``, ``"finite"`` or ``"auto"`` as for a rigid obstacle.
-        search: see :class:`Mortar`.
+        search, slide: see :class:`Mortar` (``slide``: how far the surfaces may
+            slide along each other, e.g. the stroke of an ironing die; it sizes
+            the candidate partners, found once on the nominal mesh).
 
     Returns a :class:`~signorini.contact.Contact` to put in ``Problem.contact``.
     """
@@ -98,7 +107,10 @@ def pair(slave: str, master: str, method=None, kinematics: str = "auto",
                          "a pair needs two different edge sets")
     if search is not None and not float(search) > 0:
         raise InputError(f"contact pair {slave!r}/{master!r}: search must be positive, got {search}")
-    return Contact(Mortar(master, None if search is None else float(search)), slave,
+    if slide is not None and not float(slide) >= 0:
+        raise InputError(f"contact pair {slave!r}/{master!r}: slide must be >= 0, got {slide}")
+    return Contact(Mortar(master, None if search is None else float(search),
+                          None if slide is None else float(slide)), slave,
                    AugmentedLagrangian() if method is None else method, kinematics)
 
 
@@ -120,13 +132,14 @@ class Patches:
 
 
 def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarray,
-                  master_edges: np.ndarray, search: float | None, name: str) -> Patches:
+                  master_edges: np.ndarray, search: float | None, name: str,
+                  slide: float | None = None) -> Patches:
     """Patches of every slave node (NumPy, on the nominal reference mesh ``X``).
 
     A master segment is a candidate of slave node j when, for one of j's slave
     segments, it faces it (opposite normals: n_e . n_m < 0), its projection on
     the segment's line overlaps the segment extended by half its length on each
-    side, and its distance along the normal is below ``search``."""
+    side (and by ``slide``), and its distance along the normal is below ``search``."""
     if np.intersect1d(np.unique(slave_edges), np.unique(master_edges)).size:
         common = np.intersect1d(np.unique(slave_edges), np.unique(master_edges))
         raise InputError(f"contact pair {name!r}: the slave and master surfaces share "
@@ -153,7 +166,8 @@ def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarra
     xc = np.einsum("mk,ek->em", C, tau) - np.einsum("ek,ek->e", P, tau)[:, None]
     xd = np.einsum("mk,ek->em", D, tau) - np.einsum("ek,ek->e", P, tau)[:, None]
     lo, hi = np.minimum(xc, xd) / L[:, None], np.maximum(xc, xd) / L[:, None]
-    overlap = (hi > -0.5) & (lo < 1.5)
+    reach = 0.5 + (slide or 0.0) / L[:, None]
+    overlap = (hi > -reach) & (lo < 1.0 + reach)
     facing = (n @ nm.T) < 0.0
     mid = 0.5 * (C + D)
     dist = np.abs(np.einsum("mk,ek->em", mid, n) - np.einsum("ek,ek->e", P, n)[:, None])
@@ -274,3 +288,94 @@ class MortarNode:
             d = geo_[b] - geo_[a]
             n = n + self.smask[e] * jnp.array([d[1], -d[0]])
         return n / jnp.sqrt(n @ n)
+
+
+# ------------------------------------------------- partners in the current state
+def _slave_segments(x, patches):
+    """Both slave segments of every slave node: ends (2, nc, 2 points, dim), mask (2, nc)."""
+    nd = patches.nodes
+    segs = np.stack([np.stack([x[nd[:, 0]], x[nd[:, 1]]], axis=1),
+                     np.stack([x[nd[:, 1]], x[nd[:, 2]]], axis=1)])
+    return segs, patches.slave_mask.T > 0
+
+
+def _projections(seg, x, master_edges):
+    """Master nodes (c, d) of every master segment projected on slave segments
+    ``seg`` (n, 2, 2): parameters xc, xd (n, nm) in units of the segment, normal
+    distances gc, gd (n, nm) and whether the segments face each other."""
+    a, b = seg[:, 0], seg[:, 1]
+    d = b - a
+    L = np.linalg.norm(d, axis=1)
+    L = np.where(L > 0, L, 1.0)
+    tau = d / L[:, None]
+    n = np.stack([tau[:, 1], -tau[:, 0]], axis=1)
+    C, D = x[master_edges[:, 0]], x[master_edges[:, 1]]
+    rel_c = C[None, :, :] - a[:, None, :]
+    rel_d = D[None, :, :] - a[:, None, :]
+    xc = np.einsum("nmk,nk->nm", rel_c, tau) / L[:, None]
+    xd = np.einsum("nmk,nk->nm", rel_d, tau) / L[:, None]
+    gc = np.einsum("nmk,nk->nm", rel_c, n) / L[:, None]
+    gd = np.einsum("nmk,nk->nm", rel_d, n) / L[:, None]
+    dm = D - C
+    nm = np.stack([dm[:, 1], -dm[:, 0]], axis=1)
+    facing = (n @ nm.T) < 0.0
+    return xc, xd, gc, gd, facing
+
+
+def partners(x: np.ndarray, patches: Patches, master_edges: np.ndarray, reach: float = 1.0,
+             chunk: int = 256) -> np.ndarray:
+    """(nc, n_master_edges) True where a master segment is, in the configuration
+    ``x`` (all nodes' positions), a partner of a slave node: it faces one of the
+    node's slave segments, overlaps it, and lies within ``reach`` segment lengths
+    of it along the normal over the overlap."""
+    segs, mask = _slave_segments(np.asarray(x, float), patches)
+    nc = patches.nodes.shape[0]
+    out = np.zeros((nc, len(master_edges)), bool)
+    for e in range(2):
+        for lo in range(0, nc, chunk):
+            sl = slice(lo, min(lo + chunk, nc))
+            xc, xd, gc, gd, facing = _projections(segs[e, sl], x, master_edges)
+            a = np.clip(np.minimum(xc, xd), 0.0, 1.0)
+            b = np.clip(np.maximum(xc, xd), 0.0, 1.0)
+            over = b - a > 1e-12
+            # the normal distance at the overlap's ends (linear along the master segment)
+            den = np.where(np.abs(xd - xc) > 1e-300, xd - xc, 1.0)
+            ga = gc + (a - xc) / den * (gd - gc)
+            gb = gc + (b - xc) / den * (gd - gc)
+            near = np.minimum(np.abs(ga), np.abs(gb)) <= reach
+            out[sl] |= over & facing & near & mask[e, sl, None]
+    return out
+
+
+def candidates(patches: Patches, master_edges: np.ndarray) -> np.ndarray:
+    """(nc, n_master_edges) True where a master segment is among a slave node's candidates."""
+    index = {(int(a), int(b)): k for k, (a, b) in enumerate(master_edges)}
+    out = np.zeros((patches.nodes.shape[0], len(master_edges)), bool)
+    M = patches.master_mask.shape[1]
+    for j in range(patches.nodes.shape[0]):
+        for k in range(M):
+            if patches.master_mask[j, k]:
+                out[j, index[(int(patches.nodes[j, 3 + 2 * k]), int(patches.nodes[j, 4 + 2 * k]))]] = True
+    return out
+
+
+def end_switches(x: np.ndarray, patches: Patches, master_edges: np.ndarray, tol: float) -> np.ndarray:
+    """(nc,) True where the end of the master surface (a node of one master
+    segment only) is, in the configuration ``x``, over the slave node itself, to
+    ``tol`` of a segment (along it) and within one segment length along the
+    normal: there the node's overlapped weight int N_j (N_j = 1 at the crossing),
+    so its weighted gap, has a kink (docs/theory.md §13.7). At the far end of a
+    slave segment N_j vanishes and the weight changes to second order only."""
+    ids, count = np.unique(master_edges, return_counts=True)
+    ends = ids[count == 1]
+    nc = patches.nodes.shape[0]
+    out = np.zeros(nc, bool)
+    if not ends.size:
+        return out
+    segs, mask = _slave_segments(np.asarray(x, float), patches)
+    pts = np.stack([ends, ends], axis=1)  # degenerate "segments" at the end nodes
+    for e, at in ((0, 1.0), (1, 0.0)):  # the slave node is the end of (prev, j), the start of (j, next)
+        xc, _, gc, _, _ = _projections(segs[e], x, pts)
+        on = (np.abs(xc - at) <= tol) & (np.abs(gc) <= 1.0)
+        out |= np.any(on, axis=1) & mask[e]
+    return out

@@ -230,3 +230,29 @@ def merge(bodies: Mapping[str, Mesh]) -> Mesh:
             edge_sets[f"{name}.{k}"] = v + off
         off += m.n_nodes
     return Mesh(np.concatenate(nodes), np.concatenate(cells), node_sets, edge_sets)
+
+
+def parts(mesh) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The bodies of a mesh: its connected parts as (name, nodes, cells), in the
+    order of their first node. A part is named by a node set holding exactly its
+    nodes (the body sets of :func:`merge`, a gmsh physical surface), else
+    ``"body<k>"``; nodes in no cell are left out."""
+    import scipy.sparse as sp  # noqa: PLC0415  (lazy: only meshes of several bodies need it)
+    from scipy.sparse.csgraph import connected_components  # noqa: PLC0415  (lazy, as above)
+
+    c = np.asarray(mesh.cells)
+    n = len(mesh.nodes)
+    k = c.shape[1]
+    g = sp.coo_matrix((np.ones(c.size * k), (np.repeat(c, k, axis=1).ravel(), np.tile(c, (1, k)).ravel())),
+                      shape=(n, n))
+    _, label = connected_components(g, directed=False)
+    used = np.zeros(n, bool)
+    used[c.ravel()] = True
+    out = []
+    for part in dict.fromkeys(label[np.nonzero(used)[0]]):  # first appearance order
+        nodes = np.nonzero((label == part) & used)[0]
+        names = [name for name, v in mesh.node_sets.items()
+                 if v.size == nodes.size and np.array_equal(np.sort(v), nodes)]
+        cells = np.nonzero(label[c[:, 0]] == part)[0]
+        out.append((names[0] if names else f"body{len(out) + 1}", nodes, cells))
+    return out

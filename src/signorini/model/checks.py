@@ -18,6 +18,7 @@ import numpy as np
 
 from .._jax import jax, jnp, to_device
 from ..errors import InputError, SignoriniWarning
+from ..contact import mortar
 from ..contact.obstacles import Circle
 from ..params import resolve
 
@@ -131,6 +132,11 @@ class IncrementChecks:
         self.params = params
         self.solution = solution
         self.prev = None  # (t, x of the contact nodes, closed masks) per surface
+        self.pairs = {}  # surface -> (master edges, candidate matrix): pairs, finite kinematics
+        for i, s in enumerate(model.surfaces):
+            if s.patches is not None and not model.linear_contact[i]:
+                master = model.problem.mesh.edge_set(s.contact.obstacle.master)
+                self.pairs[i] = (master, mortar.candidates(s.patches, master))
 
     def _snapshot(self, w, t):
         m = self.model
@@ -149,6 +155,7 @@ class IncrementChecks:
     def after(self, w, t, n_inc: int) -> None:
         m = self.model
         now = self._snapshot(w, t)
+        self._lost_partners(w, now, n_inc)
         if self.prev is not None:
             t0, before = self.prev
             for i, s in enumerate(m.surfaces):
@@ -176,6 +183,28 @@ class IncrementChecks:
                              f"(more than {MAX_NEW_CONTACT_NODES} per increment after t = 1/3), so "
                              "stick and slip zones can be wrong: use more load increments")
         self.prev = now
+
+    def _lost_partners(self, w, now, n_inc) -> None:
+        """A closed slave node of a pair overlapping a master segment that is not
+        among its candidates (found once on the nominal mesh) misses that
+        segment's contribution: the surfaces slid further than the pair allows."""
+        if not self.pairs:
+            return
+        m = self.model
+        x = np.asarray(m.reference(self.params)) + np.asarray(w)[: m.dim * m.n_nodes].reshape(-1, m.dim)
+        for i, (master, cand) in self.pairs.items():
+            s = m.surfaces[i]
+            closed = now[1][i][1]
+            lost = np.any(mortar.partners(x, s.patches, master) & ~cand, axis=1) & closed
+            if lost.any():
+                first = int(s.nodes[np.argmax(lost)])
+                warn(self.solution,
+                     f"contact pair {s.contact.edges!r}/{s.contact.obstacle.master!r}: in increment "
+                     f"{n_inc} (t = {now[0]:.4g}) {int(lost.sum())} closed slave node(s) (first: node "
+                     f"{first}) overlap master segments that are not among their candidate partners "
+                     "(found once on the nominal mesh, within half a segment of their own); those "
+                     "segments' contact is missing and the result is not physical: give the pair "
+                     "the sliding distance, pair(..., slide=...)")
 
     def final(self) -> None:
         if self.prev is None:

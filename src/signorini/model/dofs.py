@@ -12,14 +12,13 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from .._jax import jax, jnp
 from ..contact.area import check_edges, contact_nodes, nodal_normals
 from ..contact.friction3d import disc, reference_axis
 from ..contact.mortar import build_patches, is_mortar
 from ..errors import InputError
+from ..fem.mesh import parts
 
 
 @dataclass(frozen=True)
@@ -152,13 +151,8 @@ class DofLayout:
         prescribed displacement or by a contact (its nodes on a contact surface,
         or the master surface of a pair); otherwise its rigid motion is free and
         the first tangent singular."""
-        c = self.conn
-        k = c.shape[1]
-        rows = np.repeat(c, k, axis=1).ravel()
-        cols = np.tile(c, (1, k)).ravel()
-        g = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(self.n_nodes,) * 2)
-        n_parts, label = connected_components(g, directed=False)
-        if n_parts == 1:
+        bodies = parts(mesh)
+        if len(bodies) == 1:
             return
         held = np.zeros(self.n_nodes, bool)
         held[self.prescribed // self.dim] = True
@@ -167,12 +161,10 @@ class DofLayout:
             if s.patches is not None:  # the master segments that face a slave node
                 nc, M = s.patches.master_mask.shape
                 held[s.patches.nodes[:, 3:].reshape(nc, M, 2)[s.patches.master_mask > 0]] = True
-        for part in range(n_parts):
-            if not held[label == part].any():
-                node = int(np.argmax(label == part))
-                names = [n for n, v in mesh.node_sets.items()
-                         if v.size and np.all(label[v] == part) and np.sum(label == part) == v.size]
-                what = f"body {names[0]!r}" if names else f"the body of node {node}"
+        for name, nodes, _ in bodies:
+            if not held[nodes].any():
+                node = int(nodes[0])
+                what = f"body {name!r}" if name in mesh.node_sets else f"the body of node {node}"
                 raise InputError(
                     f"{what} (at {mesh.nodes[node].round(6).tolist()}) has no support and no contact: "
                     "nothing holds its rigid motion. Prescribe some of its displacements (Fixed) or put "
@@ -186,7 +178,8 @@ class DofLayout:
         master = mesh.edge_set(c.obstacle.master)
         check_edges(master, c.obstacle.master)
         patches = build_patches(np.asarray(mesh.nodes, dtype=float), edges, nodes, master,
-                                c.obstacle.search, f"{c.edges}/{c.obstacle.master}")
+                                c.obstacle.search, f"{c.edges}/{c.obstacle.master}",
+                                c.obstacle.slide)
         if not patches.master_mask.any():
             raise InputError(
                 f"contact pair {c.edges!r}/{c.obstacle.master!r}: no master segment faces any slave "

@@ -14,6 +14,7 @@ from ..contact.friction import STATUS_NAMES
 from . import helper
 from .atomic import atomic
 from ..errors import InputError
+from ..fem.mesh import parts
 
 
 def _vec3(a):
@@ -22,18 +23,30 @@ def _vec3(a):
     return a if a.shape[1] == 3 else np.column_stack([a, np.zeros(len(a))])
 
 
-def write_vtu(solution, path, i: int = -1) -> Path:
+def bodies(solution) -> list:
+    """The bodies of the solution's mesh, (name, nodes, cells) (:func:`signorini.fem.mesh.parts`)."""
+    m = solution.model
+    kept = m.cache.get("vtu-bodies")
+    if kept is None:
+        kept = m.cache["vtu-bodies"] = parts(m.problem.mesh)
+    return kept
+
+
+def write_vtu(solution, path, i: int = -1, body: str | None = None) -> Path:
     """Write one increment as VTU: displacement, contact tractions and gap (point
     data; with friction also ``contact_status`` 0 open / 1 stick / 2 slip and
     ``slip_increment``; in 3-D the contact force vector ``traction`` and two
     components of p_T and of the slip, in each node's tangent basis), Cauchy stress (cell data), and the sensitivity of each
     of them with respect to every design parameter (``d<field>_d<name>``); the
     switch points of the increment (docs/theory.md §11: point data ``switch`` 1
-    weakly active, 2 stick/slip switch; cell data ``plastic_switch``) and, on
+    weakly active, 2 stick/slip switch, 3 under a master surface's end, 4
+    partner change of a pair; cell data ``plastic_switch``) and, on
     the last increment, an adjoint shape gradient if one was attached
-    (``solution.shape_gradient``, (n_nodes, dim)). The fields are computed here;
-    the file is written by the output helper if one runs
-    (:mod:`signorini.post.helper`)."""
+    (``solution.shape_gradient``, (n_nodes, dim)). A mesh of several bodies
+    (:func:`signorini.fem.mesh.parts`) gets the cell data ``body`` (their index);
+    with ``body`` (a name) only that body's nodes and cells are written. The
+    fields are computed here; the file is written by the output helper if one
+    runs (:mod:`signorini.post.helper`)."""
     path = Path(path)
     m = solution.model
     X = solution.reference()
@@ -57,8 +70,11 @@ def write_vtu(solution, path, i: int = -1) -> Path:
             slip[c["node"]] = c["slip"]
             point["slip_increment" + tag] = slip
     inc = solution.increments[i]
-    if inc.switches is not None:  # docs/theory.md §11: 1 weakly active, 2 stick/slip switch
+    if inc.switches is not None:  # docs/theory.md §11, §13
         code = np.zeros(m.n_nodes)
+        for key, value in (("partner_change", 4), ("master_end", 3)):
+            for nodes in inc.switches.get(key, ()):
+                code[nodes] = value
         for nodes in inc.switches["stick_slip"]:
             code[nodes] = 2
         for nodes in inc.switches["weakly_active"]:
@@ -84,7 +100,24 @@ def write_vtu(solution, path, i: int = -1) -> Path:
     if getattr(solution, "shape_gradient", None) is not None and i in (-1, len(solution.increments) - 1):
         point["adjoint_shape_gradient"] = _vec3(solution.shape_gradient)
     kind = "quad" if m.dim == 2 else m.kinematics.cell.name  # "hexahedron" or "tetra"
-    helper.run("vtu", path, _vec3(X), kind, np.asarray(m.conn), point, cell)
+    conn = np.asarray(m.conn)
+    parts_ = bodies(solution)
+    if len(parts_) > 1:
+        index = np.zeros(len(conn))
+        for k, (_, _, cells) in enumerate(parts_):
+            index[cells] = k
+        cell["body"] = [index]
+    if body is not None:
+        found = [p for p in parts_ if p[0] == body]
+        if not found:
+            raise InputError(f"write_vtu: no body {body!r}; the mesh's bodies: {[p[0] for p in parts_]}")
+        _, nodes, cells = found[0]
+        new = np.full(len(X), -1)
+        new[nodes] = np.arange(nodes.size)
+        X, conn = np.asarray(X)[nodes], new[conn[cells]]
+        point = {k: np.asarray(v)[nodes] for k, v in point.items()}
+        cell = {k: [np.asarray(v[0])[cells]] for k, v in cell.items()}
+    helper.run("vtu", path, _vec3(X), kind, conn, point, cell)
     return Path(path)
 
 
@@ -104,7 +137,9 @@ def write_pvd(solution, path, increments=None) -> Path:
     written by :func:`write_vtu` as ``<stem>_<k:04d>.vtu`` in the directory of
     the ``.pvd`` file; the PVD collection lists them (relative file names) with
     ``timestep`` = the increment's load factor t. Open the ``.pvd`` in
-    ParaView to step through the load history.
+    ParaView to step through the load history. A mesh of several bodies is
+    written one file per body, ``<stem>_<body>_<k:04d>.vtu``, each body a
+    ``part`` of the collection (a block of its own in ParaView).
 
     Args:
         solution: a :class:`~signorini.algorithms.solution.Solution` (possibly the
@@ -130,11 +165,16 @@ def write_pvd(solution, path, increments=None) -> Path:
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
              "  <Collection>"]
+    names = [p[0] for p in bodies(solution)]
+    names = names if len(names) > 1 else [None]
     for i in idx:
-        vtu = path.with_name(f"{path.stem}_{i + 1:04d}.vtu")
-        write_vtu(solution, vtu, i)
         t = float(solution.increments[i].t)
-        lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(vtu.name)}/>')
+        for part, body in enumerate(names):
+            stem = path.stem if body is None else f"{path.stem}_{body}"
+            vtu = path.with_name(f"{stem}_{i + 1:04d}.vtu")
+            write_vtu(solution, vtu, i, body)
+            lines.append(f'    <DataSet timestep="{t!r}" group="" part="{part}" '
+                         f'file={quoteattr(vtu.name)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
     with atomic(path) as tmp:
         tmp.write_text("\n".join(lines))

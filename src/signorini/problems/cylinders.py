@@ -43,7 +43,8 @@ from .._jax import jnp
 
 from ..contact import AugmentedLagrangian, Coulomb
 from ..contact.mortar import pair
-from ..errors import InputError, UnknownParameterError
+from .values import checked_values
+from ..errors import InputError
 from ..fem.loads import Fixed, Pressure, Traction
 from ..fem.mesh import Mesh, graded_coordinates, merge, rectangle
 from ..materials import Bodies, LinearElastic
@@ -174,21 +175,9 @@ def cylinders_problem(params: dict | None = None, *, refine: int = 0, n_fine: in
     the radii are shape parameters (their meshes at the run's values, the
     design velocities exact).
     """
-    values = dict(DEFAULTS)
-    known = set(DEFAULTS) | {"eps", "eps_t"}
-    for k in params or {}:
-        if k not in known:
-            raise UnknownParameterError(
-                f"unknown parameter {k!r} for the cylinders problem; defined parameters: {sorted(known)}")
-    values.update({k: float(v) for k, v in (params or {}).items()})
-    for k, v in values.items():
-        if not np.isfinite(v):
-            raise InputError(f"cylinders problem: parameter {k} must be a finite number, got {v!r}")
-    for k in ("R1", "R2", "E1", "E2", "P"):
-        if not values[k] > 0:
-            raise InputError(f"cylinders problem: {k} must be positive, got {values[k]}")
-    if values["mu"] < 0 or values["Q"] < 0:
-        raise InputError("cylinders problem: mu and Q must be >= 0")
+    values = checked_values("cylinders problem", DEFAULTS, params, extra=("eps", "eps_t"),
+                            positive=("R1", "R2", "E1", "E2", "P"), nonnegative=("mu", "Q"))
+    values = {k: float(v) for k, v in values.items()}
     if values["Q"] > 0 and not values["Q"] < values["mu"] * values["P"]:
         raise InputError(f"cylinders problem: Q = {values['Q']} must stay below mu P = "
                          f"{values['mu'] * values['P']} (Mindlin's partial slip; at Q >= mu P the "

@@ -25,7 +25,8 @@ import numpy as np
 
 from ..contact import Contact, Coulomb
 from ..fem.element import FBAR
-from ..errors import InputError, UnknownParameterError
+from .values import checked_values
+from ..errors import InputError
 from ..fem.kinematics import Axisymmetric
 from ..fem.loads import Fixed
 from ..materials.j2 import J2Plasticity
@@ -84,16 +85,7 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
         formulation: element formulation (F-bar by default; ``element.STANDARD`` locks).
         force_size: build the mesh even if it is estimated not to fit in memory.
     """
-    values = dict(DEFAULTS)
-    known = set(DEFAULTS) | {"eps", "eps_t"}
-    for k in params or {}:
-        if k not in known:
-            raise UnknownParameterError(
-                f"unknown parameter {k!r} for the forging problem; defined parameters: {sorted(known)}")
-    values.update(params or {})
-    for k, v in values.items():
-        if not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
-            raise InputError(f"forging: parameter {k} must be a finite number, got {v!r}")
+    values = checked_values("forging problem", DEFAULTS, params, extra=("eps", "eps_t"), tag="forging")
     nr, nz = mesh
     if isinstance(nr, bool) or not (isinstance(nr, (int, np.integer)) and isinstance(nz, (int, np.integer))) \
             or nr < 1 or nz < 1:

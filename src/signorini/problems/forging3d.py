@@ -33,7 +33,8 @@ from .._jax import jax, jnp
 from ..algorithms.newton import NewtonOptions
 from ..contact import Contact, Coulomb
 from ..contact.obstacles3d import Plane
-from ..errors import InputError, UnknownParameterError
+from .values import checked_values
+from ..errors import InputError
 from ..fem.element import FBAR
 from ..fem.loads import Fixed
 from ..fem.mesh3d import Mesh3D, box
@@ -68,16 +69,8 @@ def forging3d_problem(params: dict | None = None, *, mesh: tuple[int, int] = (6,
                       lateral_fraction: float = 0.5, force_size: bool = False) -> Problem:
     """The billet's eighth (parameters square, round, bulge, mu, sigma_y, H, E, nu,
     stroke, eps, eps_t); ``mesh`` = (cells across the section's half, cells in z)."""
-    values = dict(DEFAULTS)
-    known = set(DEFAULTS) | {"eps", "eps_t"}
-    for k in params or {}:
-        if k not in known:
-            raise UnknownParameterError(f"unknown parameter {k!r} for the 3-D forging problem; "
-                                        f"defined parameters: {sorted(known)}")
-    values.update(params or {})
-    for k, v in values.items():
-        if not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
-            raise InputError(f"forging3d: parameter {k} must be a finite number, got {v!r}")
+    values = checked_values("3-D forging problem", DEFAULTS, params, extra=("eps", "eps_t"),
+                            tag="forging3d")
     ns, nz = mesh
     if isinstance(ns, bool) or not (isinstance(ns, (int, np.integer)) and isinstance(nz, (int, np.integer))) \
             or ns < 1 or nz < 1:

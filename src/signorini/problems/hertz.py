@@ -22,7 +22,8 @@ import logging
 import numpy as np
 
 from ..contact import AugmentedLagrangian, Contact, Penalty
-from ..errors import InputError, SolverError, UnknownParameterError
+from .values import checked_values
+from ..errors import InputError, SolverError
 from ..fem.loads import Fixed, Pressure
 from ..materials import LinearElastic, NeoHooke
 from ..fem.mesh import graded_coordinates, rectangle
@@ -123,19 +124,8 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
     The default ``eps`` is E0 / h with the nominal E0 and the contact cell size h
     (a number, so that ``E`` changes nothing else).
     """
-    values = dict(DEFAULTS)
-    known = set(DEFAULTS) | {"eps", "bump"}
-    for k in params or {}:
-        if k not in known:
-            raise UnknownParameterError(
-                f"unknown parameter {k!r} for the Hertz problem; defined parameters: {sorted(known)}")
-    values.update(params or {})
-    for k, v in values.items():
-        if not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
-            raise InputError(f"Hertz problem: parameter {k} must be a finite number, got {v!r}")
-    for k in ("E", "P", "R"):
-        if not values[k] > 0:
-            raise InputError(f"Hertz problem: {k} must be positive, got {values[k]}")
+    values = checked_values("Hertz problem", DEFAULTS, params, extra=("eps", "bump"),
+                            positive=("E", "P", "R"))
     LinearElastic().check(values)
     if method not in ("al", "penalty"):
         raise InputError(f"unknown contact method {method!r}; use 'al' or 'penalty'")

@@ -26,7 +26,8 @@ import numpy as np
 from ..contact import AugmentedLagrangian, Contact, Coulomb
 from ..contact.obstacles import Circle
 from ..contact.obstacles3d import Sphere
-from ..errors import InputError, UnknownParameterError
+from .values import checked_values
+from ..errors import InputError
 from ..fem.kinematics import Axisymmetric
 from ..fem.loads import Fixed, Pressure
 from ..fem.mesh import graded_coordinates, rectangle
@@ -88,19 +89,8 @@ def hertz3d_problem(params: dict | None = None, *, refine: int = 0, n_fine: int 
     """The sphere-on-block quarter model (or, ``axisymmetric``, its axisymmetric
     twin). ``eps`` defaults to E0 / h (nominal E0, contact cell size h) and
     ``eps_t`` to ``eps``; ``mu > 0`` makes the contact Coulomb friction."""
-    values = dict(DEFAULTS)
-    known = set(DEFAULTS) | {"eps", "eps_t"}
-    for k in params or {}:
-        if k not in known:
-            raise UnknownParameterError(f"unknown parameter {k!r} for the 3-D Hertz problem; "
-                                        f"defined parameters: {sorted(known)}")
-    values.update(params or {})
-    for k, v in values.items():
-        if not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
-            raise InputError(f"3-D Hertz problem: parameter {k} must be a finite number, got {v!r}")
-    for k in ("E", "P", "R"):
-        if not values[k] > 0:
-            raise InputError(f"3-D Hertz problem: {k} must be positive, got {values[k]}")
+    values = checked_values("3-D Hertz problem", DEFAULTS, params, extra=("eps", "eps_t"),
+                            positive=("E", "P", "R"))
     if values["mu"] < 0:
         raise InputError(f"the friction coefficient must be >= 0, got mu={values['mu']}")
     LinearElastic().check(values)

@@ -22,7 +22,8 @@ import dataclasses
 import numpy as np
 
 from ..contact import Contact, Coulomb
-from ..errors import InputError, UnknownParameterError
+from .values import checked_values
+from ..errors import InputError
 from . import hertz
 
 DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 1.5, "R": 10.0, "mu": 0.3}
@@ -44,13 +45,7 @@ def hertz_friction_problem(params: dict | None = None, *, refine: int = 0, n_fin
     material arguments as in :func:`signorini.problems.hertz.hertz_problem`
     (``finite_strain``: neo-Hookean block with finite contact kinematics).
     """
-    values = dict(DEFAULTS)
-    known = set(DEFAULTS) | {"eps", "eps_t", "bump"}
-    for k in params or {}:
-        if k not in known:
-            raise UnknownParameterError(f"unknown parameter {k!r} for the frictional Hertz problem; "
-                                        f"defined parameters: {sorted(known)}")
-    values.update(params or {})
+    values = checked_values("frictional Hertz problem", DEFAULTS, params, extra=("eps", "eps_t", "bump"))
     if not (isinstance(values["mu"], (int, float)) and values["mu"] >= 0 and np.isfinite(values["mu"])):
         raise InputError(f"the friction coefficient must be a finite number >= 0, got mu={values['mu']}")
     base = {k: v for k, v in values.items() if k not in ("mu", "eps_t")}

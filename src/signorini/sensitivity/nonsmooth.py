@@ -16,6 +16,14 @@ sign changes the branch, the other does not. After every converged increment
   traction is on the friction disc, ||lam^_T| - rho| <= tol p_ref;
 * elastic/plastic switch points: Gauss points whose trial yield function is on
   the yield surface, |f_tr| <= tol sqrt(2/3)(sigma_y + H alpha_n);
+* master-end switch nodes of a contact pair with finite kinematics: closed
+  slave nodes over which the end of the master surface sits, to tol of a
+  segment (their overlapped length, so their weighted gap, has a kink there);
+
+and, for contact pairs with finite kinematics, the *partner changes*: closed
+slave nodes whose set of overlapping master segments changed in the increment
+(reported, not a switch: the weighted gap and slip are continuously
+differentiable across a master node, docs/theory.md §13);
 
 with ``tol`` = :data:`SWITCH_TOL` by default. :func:`signorini.solve` stores
 the report on every increment (``Increment.switches``) and warns when
@@ -25,6 +33,8 @@ sensitivities were requested and some increment has such points.
 from __future__ import annotations
 
 import numpy as np
+
+from ..contact import mortar
 
 #: relative distance from a switch below which a point is reported as on it
 SWITCH_TOL = 1e-6
@@ -37,17 +47,24 @@ class SwitchDetector:
         self.model = model
         self.tol = float(tol)
         X = np.asarray(model.reference(params))
+        self._X = X
         self._h = []
         self._eps = []
-        for s in model.surfaces:
+        self._pairs = {}  # surface index -> master edges (pairs with finite kinematics)
+        self._partners = {}  # surface index -> the partner matrix of the last increment
+        for i, s in enumerate(model.surfaces):
             self._h.append(model.contact_cell_size(s, X))
             vals = s.contact.method.values(params)
             self._eps.append(float(vals.get("eps_n", vals.get("eps", 0.0))))
+            if s.patches is not None and not model.linear_contact[i]:
+                self._pairs[i] = model.problem.mesh.edge_set(s.contact.obstacle.master)
 
     def __call__(self, w, params, t, state_n) -> dict:
         """{"weakly_active": [[node, ...] per surface], "stick_slip": [[node, ...] per
-        surface], "elastic_plastic": [cell, ...]} at a converged increment (global
-        node numbers; cells with at least one Gauss point on the yield surface)."""
+        surface], "elastic_plastic": [cell, ...], "master_end": [[node, ...] per
+        surface], "partner_change": [[node, ...] per surface]} at a converged
+        increment (global node numbers; cells with at least one Gauss point on the
+        yield surface; the last two empty but for pairs with finite kinematics)."""
         m = self.model
         surf, ratio = m.compiled.switch_fields(w, params, t, state_n)
         surf = [{k: np.asarray(v) for k, v in f.items()} for f in surf]
@@ -59,17 +76,40 @@ class SwitchDetector:
             weak.append([int(n) for n in s.nodes[on]])
             edge = np.isfinite(f["stick_margin"]) & (np.abs(f["stick_margin"]) <= self.tol * p_ref)
             stick.append([int(n) for n in s.nodes[edge & ~on]])
+        ends, changes = self._pair_switches(w, surf)
         plastic = []
         if ratio is not None:
             plastic = [int(c) for c in np.nonzero(np.any(np.abs(np.asarray(ratio)) <= self.tol,
                                                          axis=1))[0]]
-        return {"weakly_active": weak, "stick_slip": stick, "elastic_plastic": plastic}
+        return {"weakly_active": weak, "stick_slip": stick, "elastic_plastic": plastic,
+                "master_end": ends, "partner_change": changes}
+
+    def _pair_switches(self, w, surf):
+        """Master-end switch nodes and partner changes of the pairs (finite kinematics)."""
+        m = self.model
+        ends = [[] for _ in m.surfaces]
+        changes = [[] for _ in m.surfaces]
+        if not self._pairs:
+            return ends, changes
+        x = self._X + np.asarray(w)[: m.dim * m.n_nodes].reshape(-1, m.dim)
+        for i, master in self._pairs.items():
+            s = m.surfaces[i]
+            closed = surf[i]["p_N"] > 0
+            on = mortar.end_switches(x, s.patches, master, self.tol) & closed
+            ends[i] = [int(n) for n in s.nodes[on]]
+            now = mortar.partners(x, s.patches, master)
+            before = self._partners.get(i)
+            if before is not None:
+                moved = np.any(now != before, axis=1) & closed
+                changes[i] = [int(n) for n in s.nodes[moved]]
+            self._partners[i] = now
+        return ends, changes
 
 
 def count(report: dict) -> int:
     """Number of switch points in one increment's report."""
     return (sum(len(v) for v in report["weakly_active"]) + sum(len(v) for v in report["stick_slip"])
-            + len(report["elastic_plastic"]))
+            + len(report["elastic_plastic"]) + sum(len(v) for v in report.get("master_end", ())))
 
 
 def summary(solution) -> list[dict]:
@@ -79,7 +119,20 @@ def summary(solution) -> list[dict]:
     for k, inc in enumerate(solution.increments):
         r = getattr(inc, "switches", None)
         if r and count(r):
-            out.append({"increment": k + 1, "t": float(inc.t), **r})
+            out.append({"increment": k + 1, "t": float(inc.t),
+                        **{key: v for key, v in r.items() if key != "partner_change"}})
+    return out
+
+
+def partner_changes(solution) -> list[dict]:
+    """The increments in which closed slave nodes of a contact pair changed master
+    partners, for ``summary.json``: t, increment index and the nodes per surface."""
+    out = []
+    for k, inc in enumerate(solution.increments):
+        r = getattr(inc, "switches", None) or {}
+        nodes = r.get("partner_change")
+        if nodes and any(nodes):
+            out.append({"increment": k + 1, "t": float(inc.t), "nodes": nodes})
     return out
 
 
@@ -92,9 +145,10 @@ def warning(solution, names=None) -> str | None:
     kinds = []
     for key, what in (("weakly_active", "weakly active contact nodes"),
                       ("stick_slip", "nodes on the stick/slip switch"),
+                      ("master_end", "slave nodes under the end of a master surface"),
                       ("elastic_plastic", "cells with Gauss points on the yield surface")):
         nodes = sorted({n for r in rows for n in (r[key] if key == "elastic_plastic"
-                                                  else [x for lst in r[key] for x in lst])})
+                                                  else [x for lst in r.get(key, ()) for x in lst])})
         if nodes:
             shown = ", ".join(map(str, nodes[:8])) + (", ..." if len(nodes) > 8 else "")
             kinds.append(f"{what} [{shown}]")

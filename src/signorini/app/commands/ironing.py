@@ -1,0 +1,191 @@
+"""``signorini ironing``: a deformable die pressed into a block and slid along
+it with friction at finite strain (two-body contact with finite sliding); the
+die force along the path with its DDM sensitivities, checked by central
+differences of the whole path, and the partner changes and switch points of
+the path."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import timing
+from ...algorithms.newton import NewtonOptions
+from ...design.finite_differences import finite_difference
+from ...post import files as io, plots
+from ...problems.ironing import CELLS, DEFAULTS, T_PRESS, die_force, ironing_problem, press, slide
+from ...sensitivity import nonsmooth
+from ..options import (
+    UNITS, Formatter, finish, fmt_fd, newton_options, nonneg_int, parse_sets, positive_int,
+    solver_options, with_defaults)
+from ..runner import (
+    Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
+    use_solver, write_summary)
+
+NAME = "ironing"
+RTOL = 1e-10
+STEPS = 50
+SENSITIVITIES = ("mu", "E1", "E2", "R", "d", "s")
+
+IRONING_SET = with_defaults({
+    "E1": "Young's modulus of the block [N/mm²]", "nu1": "Poisson's ratio of the block",
+    "E2": "Young's modulus of the die [N/mm²]", "nu2": "Poisson's ratio of the die",
+    "R": "radius of the die's arc [mm]", "mu": "Coulomb friction coefficient",
+    "d": "depth the die is pressed to [mm]", "s": "distance the die slides [mm]",
+    "eps": "normal augmentation parameter, default E1/h", "eps_t": "tangential, default E1/h"},
+    DEFAULTS)
+
+
+def add_parser(sub) -> None:
+    """Add this command's sub-parser to ``sub``."""
+    p = sub.add_parser(
+        NAME, formatter_class=Formatter,
+        help="a deformable die pressed into a block and slid along it (finite sliding, friction)",
+        description="Ironing in plane strain at finite strain: a stiff neo-Hookean die with a "
+                    "rounded bottom (radius R) is pressed into a neo-Hookean block to the depth d "
+                    f"over the first {T_PRESS:g} of the path, then slid along it by s with "
+                    "Coulomb friction mu; a mortar contact pair with finite kinematics (the "
+                    "block's top the slave). Writes force.csv (per increment: depth, slide, die "
+                    "force F_N and F_T, their DDM sensitivities and, unless --no-fd, central "
+                    "differences of the whole path), contact.csv (the block's top at the end), "
+                    "summary.json (forces, DDM vs FD, partner changes and switch points of the "
+                    "path, Newton log), force.png, sensitivity.png and an ironing.pvd series. " + UNITS)
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (created if needed; must be writable)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="set a named parameter (repeatable), e.g. --set mu=0.2. Names: " +
+                        "; ".join(f"{k}: {v}" for k, v in IRONING_SET.items()))
+    p.add_argument("--refine", type=nonneg_int, default=0, metavar="N",
+                   help="halve every cell of both bodies N times")
+    p.add_argument("--cells", type=positive_int, default=CELLS, metavar="N",
+                   help="the block's cells along its top (at least 24); its height gets N/8, the "
+                        "die's arc N/6 (cells 1.5 times the block's), its height a quarter of that")
+    p.add_argument("--steps", type=positive_int, default=STEPS, metavar="N",
+                   help=f"load increments over the whole path (the first {T_PRESS:g} of them press)")
+    p.add_argument("--no-fd", action="store_true",
+                   help="skip the check of the DDM sensitivities by central differences (two "
+                        "re-solves of the path per parameter)")
+    solver_options(p)
+    newton_options(p, RTOL)
+
+
+def execute(args) -> int:
+    params = parse_sets(args.set, IRONING_SET)
+    s = run(args.out, params, refine=args.refine, cells=args.cells, steps=args.steps, fd_check=not args.no_fd,
+            solver=args.solver, options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
+    print(f"Ironing ({s['mesh']['dofs']} DOFs, {s['steps']} increments): die force at the end "
+          f"F_N = {s['force_final']['F_N']:.5g}, F_T = {s['force_final']['F_T']:.5g} "
+          f"(F_T/F_N over the slide {s['force_ratio_sliding']['mean']:.4f}, mu = {s['params']['mu']:g}); "
+          f"partner changes in {len(s['partner_changes'])} increments; Newton iterations "
+          f"{sum(s['newton_iterations'])}; DDM vs FD of the forces along the path (max rel. "
+          f"diff.): {fmt_fd(s['ddm_vs_fd_rel_diff'])}; solver {s['solver']}")
+    return finish(args, s)
+
+
+def _forces(sol, names=()) -> dict:
+    """The die force at every increment (columns of force.csv)."""
+    rows = [die_force(sol, i, names) for i in range(len(sol.increments))]
+    return {k: np.array([r[k] for r in rows]) for k in rows[0]}
+
+
+@timing.recorded
+def run(out, params: dict | None = None, *, refine: int = 0, cells: int = CELLS, steps: int = STEPS,
+        fd_check: bool = True, sensitivities=None, options=None, fd_step: float = 1e-5,
+        solver="auto") -> dict:
+    """Solve the ironing problem with DDM sensitivities of the die force along the
+    path and write the results into ``out``; returns the summary. The FD check
+    re-solves the whole path at phi +- h (h = ``fd_step`` max(|phi|, 1)) and
+    compares F_N and F_T at every increment."""
+    clock = Timer()
+    out = prepare_output(out)
+    options = options or NewtonOptions(rtol=RTOL)
+    solver = use_solver(solver)
+    pb = ironing_problem(params, refine=refine, cells=cells)
+    v = pb.params
+    names = list(SENSITIVITIES if sensitivities is None else sensitivities)
+    top = pb.mesh.nodes[pb.mesh.node_sets["block.top"]]
+    mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "refine": refine,
+                 "block_cells_along_top": cells * 2**refine,
+                 "block_contact_cell_size": float(np.min(np.diff(np.sort(top[:, 0])))),
+                 "die_contact_cell_size": float(np.min(np.diff(np.sort(
+                     pb.mesh.nodes[pb.mesh.node_sets["die.bottom"], 0]))))}
+    t0 = clock()
+    timing.mark("solve")
+    sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, steps=steps, wrt=names,
+                          options=options, solver=solver)
+    t_solve = clock() - t0
+    timing.mark("sensitivities")
+    F = _forces(sol, names)
+    t = np.array([inc.t for inc in sol.increments])
+    cols = {"increment": np.arange(1, len(t) + 1), "t": t, "depth": v["d"] * np.asarray(press(t)),
+            "slide": v["s"] * np.asarray(slide(t)), **F}
+    ddm_fd = {}
+    if fd_check:
+        def both(s):
+            f = _forces(s)
+            return np.concatenate([f["F_N"], f["F_T"]])
+        for n in names:
+            fd = finite_difference(pb, n, both, steps=steps, options=options, rel_step=fd_step,
+                                   solver=solver)
+            cols[f"FD_dF_N_d{n}"], cols[f"FD_dF_T_d{n}"] = fd[: len(t)], fd[len(t):]
+            ddm_fd[n] = max(max_rel_diff(F[f"dF_N_d{n}"], cols[f"FD_dF_N_d{n}"]),
+                            max_rel_diff(F[f"dF_T_d{n}"], cols[f"FD_dF_T_d{n}"]))
+    timing.mark("output")
+    io.write_csv(out / "force.csv", cols)
+    io.write_csv(out / "contact.csv", _block_top(sol))
+    io.write_pvd(sol, out / "ironing.pvd")
+    _figures(out, cols, names, v)
+    sliding = t > T_PRESS + 0.25 * (1.0 - T_PRESS)  # past the start of the slide
+    ratio = F["F_T"][sliding] / F["F_N"][sliding] if sliding.any() else np.array([np.nan])
+    changes = nonsmooth.partner_changes(sol)
+    summary = summary_header("converged", sol)
+    summary.update({
+        "params": v,
+        "steps": steps,
+        **solver_entries(solver, sol),
+        "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
+        "force_final": {"F_N": float(F["F_N"][-1]), "F_T": float(F["F_T"][-1])},
+        "force_max": {"F_N": float(F["F_N"].max()), "F_T": float(F["F_T"].max())},
+        "force_ratio_sliding": {"mean": float(np.mean(ratio)), "min": float(np.min(ratio)),
+                                "max": float(np.max(ratio)),
+                                "note": "F_T / F_N over the last three quarters of the slide"},
+        "partner_change_count": int(sum(len(n) for r in changes for n in r["nodes"])),
+        **newton_log(sol),
+        "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
+        "ddm_vs_fd_note": "max over the path of |DDM - FD| / max|DDM| for F_N and F_T",
+        "fd_relative_step": fd_step,
+        "time_solve_s": t_solve,
+        "time_wall_s": clock(),
+    })
+    return write_summary(out, summary, sol)
+
+
+def _block_top(sol) -> dict:
+    """contact.csv: the block's top (the slave surface) at the end, sorted by x: x
+    (current), p_N, p_T (the traction on the block along +x), status, sensitivities."""
+    c = sol.contact()
+    order = np.argsort(c["x"][:, 0])
+    cols = {"x": c["x"][order, 0], "y": c["x"][order, 1], "p_N": c["p_N"][order],
+            "p_T": -c["p_T"][order], "status": c["status"][order]}
+    for n in sol.names:
+        cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"][order]
+    return cols
+
+
+def _figures(out, cols, names, v) -> None:
+    x = cols["slide"]
+    plots.curves(out / "force.png", [
+        {"x": x, "y": cols["F_N"], "label": "F_N (pressing)"},
+        {"x": x, "y": cols["F_T"], "label": "F_T (along the slide)"},
+        {"x": x, "y": v["mu"] * cols["F_N"], "label": "mu F_N"}],
+        xlabel="slide [mm] (0 while pressing)", ylabel="die force [N/mm]",
+        title="Ironing: die force along the path")
+    series = []
+    for n in names:
+        scale = abs(v[n]) or 1.0
+        series.append({"x": x, "y": scale * cols[f"dF_T_d{n}"], "label": f"{n} dF_T/d{n}, DDM"})
+        if f"FD_dF_T_d{n}" in cols:
+            series.append({"x": x, "y": scale * cols[f"FD_dF_T_d{n}"], "label": f"FD ({n})",
+                           "style": "points"})
+    plots.curves(out / "sensitivity.png", series, xlabel="slide [mm] (0 while pressing)",
+                 ylabel="phi dF_T/dphi [N/mm]",
+                 title="Sensitivity of the tangential die force along the path")

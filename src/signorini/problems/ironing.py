@@ -1,0 +1,152 @@
+"""Ironing: a deformable die pressed into a block and slid along it with
+friction, in plane strain at finite strain: the finite-sliding example of
+two-body contact (docs/theory.md §13, docs/cli.md).
+
+The block (neo-Hooke E1, nu1) is the rectangle [0, L] x [0, H], its bottom
+clamped. The die (neo-Hooke E2, nu2, stiffer) is a block of half-width A and
+height D whose bottom is the circular arc of radius R touching the block's top
+at (X0, H) at t = 0; its top is moved rigidly: down by d over the first part of
+the path (t <= T_PRESS), then along the block by s at that depth. The block's
+top (the finer and softer surface) is the slave of a mortar pair with finite
+kinematics whose candidate partners cover the whole slide (``slide``), so every
+block node under the die's path changes master (die) segments as the die's
+nodes pass over it: those partner changes
+are reported per increment (summary.json ``partner_changes``), and the weighted
+gap and slip are continuously differentiable across them, which the finite
+differences along the path confirm.
+
+The die force is the force of its support on the die: F_N = -sum of the
+vertical reactions (pressing), F_T = sum of the horizontal ones (pulling),
+both per unit thickness.
+
+The die's arc is a shape parameter: a node at column x and relative height e
+(0 on the arc, 1 on the top) lies at y = y_arc(x; R) + e (y_top - y_arc), so
+its design velocity is exact; the grid lines never depend on a run's values.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jax import jnp
+
+from ..contact import Coulomb
+from ..contact.mortar import pair
+from .values import checked_values
+from ..errors import InputError
+from ..fem.loads import Fixed
+from ..fem.mesh import Mesh, merge, rectangle
+from ..materials import Bodies, NeoHooke
+from ..model.problem import Problem
+
+DEFAULTS = {"E1": 100.0, "nu1": 0.3, "E2": 1000.0, "nu2": 0.3, "R": 1.0, "mu": 0.3, "d": 0.06,
+            "s": 1.5}
+#: the block's length and height, the die's half-width, height and start
+L, H, A, D, X0 = 4.0, 1.0, 0.5, 0.5, 1.0
+#: the part of the path over which the die is pressed in
+T_PRESS = 0.2
+#: the block's cells along its top; the others follow (:func:`cell_counts`)
+CELLS = 96
+
+
+def cell_counts(cells: int = CELLS, refine: int = 0) -> tuple[int, int, int, int]:
+    """(block along, block across, die along its arc, die across): the block's top
+    ``cells`` x 2^refine cells, its height an eighth of that, the die's arc a sixth
+    (its cells 1.5 times the block's: the block's top is the finer surface) and
+    its height a quarter of the arc's (at least 2)."""
+    if isinstance(cells, bool) or not isinstance(cells, (int, np.integer)) or cells < 24:
+        raise InputError(f"ironing problem: cells (the block's cells along its top) must be an "
+                         f"integer >= 24, got {cells!r}")
+    if isinstance(refine, bool) or not isinstance(refine, (int, np.integer)) or refine < 0:
+        raise InputError(f"refine must be an integer >= 0, got {refine!r}")
+    n = int(cells) * 2**int(refine)
+    arc = max(n // 6, 4)
+    return n, max(n // 8, 2), arc, max(arc // 4, 2)
+
+
+def press(t):
+    """The die's depth over the path, relative to d."""
+    return jnp.minimum(t / T_PRESS, 1.0)
+
+
+def slide(t):
+    """The die's travel along the block, relative to s."""
+    return jnp.maximum((t - T_PRESS) / (1.0 - T_PRESS), 0.0)
+
+
+def check_params(params: dict | None) -> dict:
+    """The run's values: DEFAULTS updated by ``params`` (eps, eps_t allowed), checked."""
+    values = checked_values("ironing problem", DEFAULTS, params, extra=("eps", "eps_t"),
+                            positive=("E1", "E2", "R", "d"), nonnegative=("mu", "s"))
+    values = {k: float(v) for k, v in values.items()}
+    if not values["R"] > A * 1.05:
+        raise InputError(f"ironing problem: the die's radius R = {values['R']} must exceed its "
+                         f"half-width {A} (by 5 %): the arc spans the die's bottom")
+    if not values["d"] < 0.3 * H:
+        raise InputError(f"ironing problem: the depth d = {values['d']} must stay below 0.3 H = "
+                         f"{0.3 * H} (the block's height is {H})")
+    if X0 + values["s"] + A > L - 0.25:
+        raise InputError(f"ironing problem: the slide s = {values['s']} takes the die off the block "
+                         f"(its end reaches x = {X0 + values['s'] + A}, the block ends at {L}); "
+                         f"keep s <= {L - 0.25 - X0 - A}")
+    return values
+
+
+def _die(R: float, nx: int, ny: int):
+    """(mesh, V = dX/dR) of the die: columns over [X0 - A, X0 + A], relative heights."""
+    m = rectangle(np.linspace(X0 - A, X0 + A, nx + 1), np.linspace(0.0, 1.0, ny + 1))
+    x, e = m.nodes[:, 0], m.nodes[:, 1]
+    r = np.sqrt(R**2 - (x - X0) ** 2)
+    y_arc = H + R - r
+    dy_arc = 1.0 - R / r
+    top = H + D
+    y = y_arc + e * (top - y_arc)
+    V = np.column_stack([np.zeros_like(x), (1.0 - e) * dy_arc])
+    return Mesh(np.column_stack([x, y]), m.cells, m.node_sets, m.edge_sets), V
+
+
+def ironing_problem(params: dict | None = None, *, refine: int = 0, cells: int = CELLS) -> Problem:
+    """Build the ironing problem (values: :data:`DEFAULTS` updated by ``params``).
+
+    Args:
+        params: overrides of E1, nu1, E2, nu2, R, mu, d, s and eps, eps_t
+            (default E1/h for both, h the block's cell size along its top).
+        refine: each level halves the cells of both bodies.
+        cells: the block's cells along its top (see :func:`cell_counts`).
+    """
+    values = check_params(params)
+    nbx, nby, ndx, ndy = cell_counts(cells, refine)
+    block = rectangle(np.linspace(0.0, L, nbx + 1), np.linspace(0.0, H, nby + 1))
+    die, V = _die(values["R"], ndx, ndy)
+    mesh = merge({"block": block, "die": die})
+    shape = {"R": np.concatenate([np.zeros_like(block.nodes), V])}
+    h = L / nbx
+    for key in ("eps", "eps_t"):
+        if key not in (params or {}):
+            values[key] = DEFAULTS["E1"] / h
+    method = Coulomb("mu", "eps", "eps_t")
+    # the candidates cover the nominal slide and the run's (extra candidates
+    # that never overlap contribute exactly nothing: the pairing does not
+    # change the solution), with two block cells to spare
+    reach = max(values["s"], DEFAULTS["s"]) + 2 * h
+    contact = pair("block.top", "die.bottom", method, "finite", slide=reach)
+    fixed = (Fixed("block.bottom", 0), Fixed("block.bottom", 1),
+             Fixed("die.top", 0, "s", ramp=slide), Fixed("die.top", 1, lambda p: -p["d"], ramp=press))
+    return Problem(mesh=mesh,
+                   material=Bodies({"block": NeoHooke("E1", "nu1"), "die": NeoHooke("E2", "nu2")}),
+                   params=values, fixed=fixed, contact=(contact,),
+                   shape=shape, shape_nominal={"R": values["R"]})
+
+
+def die_force(solution, i: int = -1, names=()) -> dict:
+    """The die force at increment i: F_N (pressing), F_T (along the slide) and,
+    for each name, their DDM sensitivities dF_N_d<name>, dF_T_d<name>."""
+    top = solution.model.problem.mesh.node_sets["die.top"]
+    r = solution.reactions(i)[top].sum(axis=0)
+    out = {"F_N": -float(r[1]), "F_T": float(r[0])}
+    sens = solution.reaction_sensitivities(i) if names else {}
+    for n in names:
+        dr = sens[n][top].sum(axis=0)
+        out[f"dF_N_d{n}"] = -float(dr[1])
+        out[f"dF_T_d{n}"] = float(dr[0])
+    return out

@@ -1,0 +1,166 @@
+"""Finite sliding of two deformable bodies: the ironing example (docs/theory.md
+§13.7–13.8). Partner changes are followed exactly (DDM = central differences of
+the die force along a path in which every closed slave node changes partners),
+reported per increment; a pair whose candidates do not cover the slide says so;
+the end of a master surface over a slave node is a switch point."""
+
+import csv
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+import signorini as sg
+from signorini.app.cli import main
+from signorini.algorithms.newton import NewtonOptions
+from signorini.contact import mortar
+from signorini.design.finite_differences import finite_difference
+from signorini.errors import InputError, UnknownParameterError
+from signorini.problems.ironing import die_force, ironing_problem
+from signorini.sensitivity import nonsmooth
+
+STEPS = 15  # a slide of 0.75 over 12 increments: less than a block cell (1/12) per increment
+CELLS = 48
+SLIDE = {"s": 0.75}
+TIGHT = NewtonOptions(rtol=1e-11)
+NAMES = ["mu", "R", "E2", "s"]
+
+
+@pytest.fixture(scope="module")
+def ironed():
+    pb = ironing_problem(SLIDE, cells=CELLS)
+    sol = sg.solve(pb, steps=STEPS, wrt=NAMES, options=TIGHT)
+    return pb, sol
+
+
+def _forces(sol):
+    f = [die_force(sol, i) for i in range(len(sol.increments))]
+    return np.array([[r["F_N"], r["F_T"]] for r in f])
+
+
+def test_die_force_and_partner_changes(ironed):
+    """Once the die slides every closed node slips and F_T / F_N is close to mu;
+    the closed slave nodes change partners along the slide and are reported."""
+    pb, sol = ironed
+    # on this coarse mesh the contact zone has fewer than 10 nodes: the only warning
+    assert [w for w in sol.warnings if "poorly resolved" not in w] == [], sol.warnings
+    F = _forces(sol)
+    t = np.array([inc.t for inc in sol.increments])
+    sliding = t > 0.4
+    ratio = F[sliding, 1] / F[sliding, 0]
+    assert np.all(np.abs(ratio - pb.params["mu"]) < 0.03 * pb.params["mu"]), ratio
+    c = sol.contact()
+    closed = c["p_N"] > 0
+    assert closed.sum() >= 5 and np.all(c["status"][closed] == "slip")
+    changes = nonsmooth.partner_changes(sol)
+    moved = {n for r in changes for n in r["nodes"][0]}
+    assert len(changes) >= STEPS - 3  # every sliding increment
+    assert set(c["node"][closed]) <= moved
+    # a partner change is not a switch point: no warning of one-sided derivatives
+    assert nonsmooth.summary(sol) == []
+
+
+def test_ddm_equals_fd_through_partner_changes(ironed):
+    """The DDM of the die force (F_N, F_T) at every increment equals central
+    differences of the whole path, for friction, the die's radius (shape), its
+    modulus and the slide, although the partners change in every increment."""
+    pb, sol = ironed
+    ddm = [die_force(sol, i, NAMES) for i in range(len(sol.increments))]
+    for n in NAMES:
+        d = np.array([[r[f"dF_N_d{n}"], r[f"dF_T_d{n}"]] for r in ddm])
+        fd = finite_difference(pb, n, _forces, steps=STEPS, options=TIGHT, rel_step=1e-5)
+        err = np.abs(fd - d).max(axis=0) / np.abs(d).max(axis=0)
+        assert np.all(err <= 1e-6), (n, err)
+
+
+def test_candidates_that_miss_the_slide_are_reported():
+    """A pair whose candidates cover only small sliding (no slide=) loses the die's
+    contact on the way: a warning names it instead of a silently wrong force."""
+    pb = ironing_problem(cells=24, params={"s": 0.5})
+    c = pb.contact[0]
+    short = mortar.pair(c.edges, c.obstacle.master, c.method, "finite")  # no slide
+    sol = sg.solve(dataclasses.replace(pb, contact=(short,)), steps=6)
+    assert any("not among their candidate partners" in w and "slide=" in w for w in sol.warnings), \
+        sol.warnings  # (with slide=, test_die_force_and_partner_changes: no such warning)
+
+
+def test_partners_and_master_end_geometry():
+    """The partner matrix and the master-end switch on hand-made surfaces: a slave
+    line y = 0 (nodes at x = 0, 1, 2) under a master line of two segments whose end
+    node sits exactly over the middle slave node, then moved by 1e-3."""
+    X = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0],      # slave 0-1-2 (outward normal -y... top)
+                  [1.0, 0.0], [-0.5, 0.0], [-2.0, 0.0]])   # master 3-4-5, running right to left
+    slave = np.array([[0, 1], [1, 2]])
+    master = np.array([[3, 4], [4, 5]])
+    patches = mortar.build_patches(X, slave, np.array([0, 1, 2]), master, None, "t")
+    P = mortar.partners(X, patches, master)
+    assert P.tolist() == [[True, False], [True, False], [False, False]]
+    on = mortar.end_switches(X, patches, master, 1e-6)
+    assert on.tolist() == [False, True, False]  # node 3 (an end) over slave node 1 only
+    moved = X.copy()
+    moved[3:, 0] -= 1e-3
+    assert not mortar.end_switches(moved, patches, master, 1e-6).any()
+
+
+def test_bad_ironing_input():
+    with pytest.raises(UnknownParameterError, match="ironing"):
+        ironing_problem({"depth": 0.1})
+    with pytest.raises(InputError, match="off the block"):
+        ironing_problem({"s": 3.0})
+    with pytest.raises(InputError, match="cells"):
+        ironing_problem(cells=10)
+    with pytest.raises(InputError, match="slide must be"):
+        mortar.pair("a", "b", slide=-1.0)
+
+
+def _read(out, name):
+    with open(out / name) as f:
+        rows = list(csv.DictReader(f))
+    cols = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+    return {k: (v if k == "status" else v.astype(float)) for k, v in cols.items()}
+
+
+SMALL = ["--cells", "24", "--steps", "12", "--set", "s=0.5", "-q"]
+
+
+def test_ironing_cli(tmp_path):
+    """A coarse command run: every file (one VTU per body and increment), the
+    DDM of the die force against the command's own central differences, the
+    partner changes and per-body entries in summary.json."""
+    small = SMALL
+    out = tmp_path / "i"
+    assert main(["ironing", "--out", str(out)] + small) == 0
+    for name in ("force.csv", "contact.csv", "summary.json", "force.png", "sensitivity.png",
+                 "ironing.pvd", "ironing_block_0012.vtu", "ironing_die_0012.vtu"):
+        assert (out / name).is_file(), name
+    s = json.loads((out / "summary.json").read_text())
+    assert set(s["ddm_vs_fd_rel_diff"]) == {"mu", "E1", "E2", "R", "d", "s"}
+    assert max(s["ddm_vs_fd_rel_diff"].values()) <= 1e-6, s["ddm_vs_fd_rel_diff"]
+    assert s["partner_changes"] and s["partner_change_count"] > 0
+    assert set(s["bodies"]) == {"block", "die"}
+    # the die's support force is the die force; the block's balances it
+    F = _read(out, "force.csv")
+    assert s["bodies"]["die"]["support_force"] == pytest.approx([F["F_T"][-1], -F["F_N"][-1]])
+    assert np.allclose(s["bodies"]["block"]["support_force"], [-F["F_T"][-1], F["F_N"][-1]],
+                       rtol=1e-8, atol=1e-10 * F["F_N"][-1])
+    pvd = (out / "ironing.pvd").read_text()
+    assert pvd.count('part="1"') == 12 and "ironing_die_0001.vtu" in pvd
+
+
+@pytest.mark.slow  # 3 command runs; test_ironing_cli checks the command's own FD, test_ddm_equals_fd_... the API's
+def test_ironing_cli_fd_of_two_runs(tmp_path):
+    """The central difference of F_T from two command runs with R +- h (the die
+    re-meshed on its arc) equals the DDM printed by the run at R."""
+    small = SMALL
+    out = tmp_path / "i"
+    assert main(["ironing", "--out", str(out), "--no-fd"] + small) == 0
+    F = _read(out, "force.csv")
+    h = 1e-5
+    runs = []
+    for sign in (1, -1):
+        o = tmp_path / f"R{sign}"
+        assert main(["ironing", "--out", str(o), "--no-fd", "--set", f"R={1.0 + sign * h}"] + small) == 0
+        runs.append(_read(o, "force.csv"))
+    fd = (runs[0]["F_T"] - runs[1]["F_T"]) / (2 * h)
+    assert np.abs(fd - F["dF_T_dR"]).max() <= 1e-6 * np.abs(F["dF_T_dR"]).max()
