@@ -185,9 +185,11 @@ class IncrementChecks:
         self.prev = now
 
     def _lost_partners(self, w, now, n_inc) -> None:
-        """A closed slave node of a pair overlapping a master segment that is not
-        among its candidates (found once on the nominal mesh) misses that
-        segment's contribution: the surfaces slid further than the pair allows."""
+        """A slave node of a pair that overlaps a master segment outside its
+        candidates (found once on the nominal mesh), closed or within half a
+        segment of it, misses (or would miss) that segment's contact: the
+        surfaces slid further than the pair allows. An open node that slid past
+        all its candidates gets the far gap, so the closed ones are not enough."""
         if not self.pairs:
             return
         m = self.model
@@ -195,16 +197,21 @@ class IncrementChecks:
         for i, (master, cand) in self.pairs.items():
             s = m.surfaces[i]
             closed = now[1][i][1]
-            lost = np.any(mortar.partners(x, s.patches, master) & ~cand, axis=1) & closed
+            outside = lambda reach: np.any(mortar.partners(x, s.patches, master, reach) & ~cand,  # noqa: E731
+                                           axis=1)
+            lost = (outside(1.0) & closed) | outside(0.5)
             if lost.any():
                 first = int(s.nodes[np.argmax(lost)])
+                slide = s.contact.obstacle.slide
+                window = "half a segment" + (f" plus slide = {slide:g}" if slide else "")
                 warn(self.solution,
                      f"contact pair {s.contact.edges!r}/{s.contact.obstacle.master!r}: in increment "
-                     f"{n_inc} (t = {now[0]:.4g}) {int(lost.sum())} closed slave node(s) (first: node "
-                     f"{first}) overlap master segments that are not among their candidate partners "
-                     "(found once on the nominal mesh, within half a segment of their own); those "
-                     "segments' contact is missing and the result is not physical: give the pair "
-                     "the sliding distance, pair(..., slide=...)")
+                     f"{n_inc} (t = {now[0]:.4g}) {int(lost.sum())} slave node(s) (first: node "
+                     f"{first}) overlap master segments, in contact or within half a segment of "
+                     "them, that are not among their candidate partners (found once on the nominal "
+                     f"mesh, within {window} of their own); contact with those segments is missed "
+                     "and the result is not physical: give the pair the sliding distance, "
+                     "pair(..., slide=...)")
 
     def final(self) -> None:
         if self.prev is None:
