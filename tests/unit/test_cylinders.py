@@ -81,3 +81,16 @@ def test_cylinders_cli_outputs(tmp_path):
     width = np.diff(np.sort(up["x"]))
     force = np.sum(up["p_N"] * np.concatenate([[width[0] / 2], (width[:-1] + width[1:]) / 2, [width[-1] / 2]]))
     assert force == pytest.approx(0.1, rel=1e-3)
+
+
+@pytest.mark.slow  # 42k DOFs, ~1 min; test_mortar's frictional cylinders DDM = FD covers the code
+def test_mindlin_stick_zone_within_two_percent_at_refine_1(tmp_path):
+    """Mindlin's partial slip: with cells of 1/32 of b (refine 1) the stick zone's
+    c/b is within 2 % of sqrt(1 - Q/(mu P)) and b within one cell of Hertz's (on the
+    default mesh each is resolved to one cell, 6 % of b)."""
+    out = tmp_path / "m"
+    assert main(["cylinders", "--out", str(out), "--no-fd", "--refine", "1", "--set", "mu=0.3",
+                 "--set", "Q=0.015", "-q"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert abs(s["c_over_b"]["rel_error"]) <= 0.02, s["c_over_b"]
+    assert abs(s["b"]["error_in_cells"]) <= 1.0
