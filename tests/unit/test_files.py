@@ -54,3 +54,45 @@ def test_write_pvd_series(tmp_path):
     assert [(d.get("file"), float(d.get("timestep"))) for d in ds] == [("last_0003.vtu", 1.0)]
     with pytest.raises(sg.InputError, match="increment 7 does not exist"):
         files.write_pvd(sol, tmp_path / "bad.pvd", increments=[7])
+
+
+def test_pvd_of_two_bodies_computes_each_increment_once(tmp_path, monkeypatch):
+    """A mesh of two bodies: one VTU per body and increment, each holding its
+    body's nodes and cells with the solution's values there; the fields of an
+    increment are computed once for all its bodies."""
+    import xml.etree.ElementTree as ET
+
+    a = sg.rectangle(np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+    b = sg.rectangle(np.linspace(2, 3, 4), np.linspace(0, 1, 3))
+    m = sg.merge({"left": a, "right": b})
+    fixed = tuple(sg.Fixed(f"{k}.{s}", d) for k in ("left", "right") for s, d in (("bottom", 1), ("left", 0)))
+    pb = sg.Problem(m, sg.LinearElastic("E", 0.3), {"E": 100.0, "q": 2.0}, fixed=fixed,
+                    loads=(sg.Pressure("left.top", "q"), sg.Pressure("right.top", "q")))
+    sol = sg.solve(pb, steps=2, wrt=["q"])
+    calls = []
+    real = files._fields
+    monkeypatch.setattr(files, "_fields", lambda s, i: calls.append(i) or real(s, i))
+    pvd = files.write_pvd(sol, tmp_path / "two.pvd")
+    assert calls == [0, 1]
+    ds = ET.parse(pvd).getroot().findall("./Collection/DataSet")
+    assert [(d.get("file"), d.get("part")) for d in ds] == [
+        ("two_left_0001.vtu", "0"), ("two_right_0001.vtu", "1"),
+        ("two_left_0002.vtu", "0"), ("two_right_0002.vtu", "1")]
+    u = sol.displacement(1)
+    for name, nodes, cells in files.bodies(sol):
+        back = meshio.read(tmp_path / f"two_{name}_0002.vtu")
+        assert len(back.points) == nodes.size == (9 if name == "left" else 12)
+        assert len(back.cells[0].data) == cells.size
+        assert np.allclose(back.points[:, :2], np.asarray(m.nodes)[nodes])
+        assert np.allclose(back.point_data["displacement"][:, :2], u[nodes])
+        assert np.allclose(back.point_data["ddisplacement_dq"][:, :2],
+                           sol.displacement_sensitivity("q", 1)[nodes])
+        assert set(back.cell_data["body"][0]) == {0 if name == "left" else 1}
+        # write_vtu of one body writes the same file
+        one = files.write_vtu(sol, tmp_path / f"one_{name}.vtu", 1, body=name)
+        again = meshio.read(one)
+        assert np.array_equal(again.point_data["displacement"], back.point_data["displacement"])
+    whole = meshio.read(files.write_vtu(sol, tmp_path / "whole.vtu"))
+    assert len(whole.points) == 21 and sorted(set(whole.cell_data["body"][0])) == [0, 1]
+    with pytest.raises(sg.InputError, match="no body 'middle'"):
+        files.write_vtu(sol, tmp_path / "bad.vtu", body="middle")

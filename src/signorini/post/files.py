@@ -47,7 +47,13 @@ def write_vtu(solution, path, i: int = -1, body: str | None = None) -> Path:
     with ``body`` (a name) only that body's nodes and cells are written. The
     fields are computed here; the file is written by the output helper if one
     runs (:mod:`signorini.post.helper`)."""
-    path = Path(path)
+    _write_part(Path(path), _fields(solution, i), bodies(solution), body)
+    return Path(path)
+
+
+def _fields(solution, i: int) -> tuple:
+    """The points, cell kind, connectivity, point data and cell data of increment
+    ``i`` on the whole mesh (what :func:`write_vtu` writes)."""
     m = solution.model
     X = solution.reference()
     point = {"displacement": _vec3(solution.displacement(i))}
@@ -107,6 +113,12 @@ def write_vtu(solution, path, i: int = -1, body: str | None = None) -> Path:
         for k, (_, _, cells) in enumerate(parts_):
             index[cells] = k
         cell["body"] = [index]
+    return X, kind, conn, point, cell
+
+
+def _write_part(path: Path, fields: tuple, parts_: list, body: str | None) -> None:
+    """Write the fields of one increment (:func:`_fields`), all bodies or one."""
+    X, kind, conn, point, cell = fields
     if body is not None:
         found = [p for p in parts_ if p[0] == body]
         if not found:
@@ -118,7 +130,6 @@ def write_vtu(solution, path, i: int = -1, body: str | None = None) -> Path:
         point = {k: np.asarray(v)[nodes] for k, v in point.items()}
         cell = {k: [np.asarray(v[0])[cells]] for k, v in cell.items()}
     helper.run("vtu", path, _vec3(X), kind, conn, point, cell)
-    return Path(path)
 
 
 def _write_vtu_arrays(path, points, cell_kind: str, cells, point_data: dict, cell_data: dict) -> None:
@@ -165,14 +176,15 @@ def write_pvd(solution, path, increments=None) -> Path:
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
              "  <Collection>"]
-    names = [p[0] for p in bodies(solution)]
-    names = names if len(names) > 1 else [None]
+    parts_ = bodies(solution)
+    names = [p[0] for p in parts_] if len(parts_) > 1 else [None]
     for i in idx:
         t = float(solution.increments[i].t)
+        fields = _fields(solution, i)  # once per increment, whatever the number of bodies
         for part, body in enumerate(names):
             stem = path.stem if body is None else f"{path.stem}_{body}"
             vtu = path.with_name(f"{stem}_{i + 1:04d}.vtu")
-            write_vtu(solution, vtu, i, body)
+            _write_part(vtu, fields, parts_, body)
             lines.append(f'    <DataSet timestep="{t!r}" group="" part="{part}" '
                          f'file={quoteattr(vtu.name)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
