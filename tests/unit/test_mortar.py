@@ -312,3 +312,28 @@ def test_rigid_motion_of_a_pair_changes_nothing(kin):
         du = ref.displacement_sensitivity(n)
         np.testing.assert_allclose(rot.displacement_sensitivity(n), du @ Q.T, rtol=0,
                                    atol=1e-9 * np.abs(u).max() / abs(ref.params[n]), err_msg=n)
+
+
+def test_partner_distances_computed_once_per_increment(monkeypatch):
+    """A finite-sliding pair: the increment checks (lost partners, two reaches) and
+    the switch detector (partner changes) share one computation of the partner
+    distances per converged increment; partners() is the distances within reach."""
+    from signorini.contact import mortar
+    from signorini.problems.ironing import ironing_problem
+
+    pb = ironing_problem(cells=24, params={"s": 0.3})
+    master = pb.mesh.edge_set(pb.contact[0].obstacle.master)
+    calls = []
+    real = mortar._projections
+    monkeypatch.setattr(mortar, "_projections",
+                        lambda seg, x, edges: calls.append(len(edges) == len(master)) or real(seg, x, edges))
+    sol = sg.solve(pb, steps=4)
+    assert not [w for w in sol.warnings if "candidate partners" in w], sol.warnings
+    # the candidates on the nominal mesh, then per increment both slave segments of each node, once
+    assert sum(calls) == 1 + 2 * len(sol.increments)
+    surf = sol.model.surfaces[0]
+    x = np.asarray(sol.reference()) + sol.displacement()
+    d = mortar.partner_distances(x, surf.patches, master)
+    assert np.isfinite(d).any() and np.all(d[np.isfinite(d)] >= 0)
+    for reach in (0.5, 1.0):
+        assert np.array_equal(mortar.partners(x, surf.patches, master, reach), d <= reach)

@@ -154,23 +154,12 @@ def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarra
     if search is None:
         box = X[slave_nodes].max(axis=0) - X[slave_nodes].min(axis=0)
         search = float(max(box.max(), 1e-300))
-    P, Q = X[slave_edges[:, 0]], X[slave_edges[:, 1]]
-    d = Q - P
-    L = np.linalg.norm(d, axis=1)
-    tau = d / L[:, None]
-    n = np.stack([tau[:, 1], -tau[:, 0]], axis=1)
-    C, D = X[master_edges[:, 0]], X[master_edges[:, 1]]
-    dm = D - C
-    nm = np.stack([dm[:, 1], -dm[:, 0]], axis=1) / np.linalg.norm(dm, axis=1)[:, None]
     # (n_slave_edges, n_master_edges) candidate matrix
-    xc = np.einsum("mk,ek->em", C, tau) - np.einsum("ek,ek->e", P, tau)[:, None]
-    xd = np.einsum("mk,ek->em", D, tau) - np.einsum("ek,ek->e", P, tau)[:, None]
-    lo, hi = np.minimum(xc, xd) / L[:, None], np.maximum(xc, xd) / L[:, None]
+    L = np.linalg.norm(X[slave_edges[:, 1]] - X[slave_edges[:, 0]], axis=1)
+    xc, xd, gc, gd, facing = _projections(X[slave_edges], X, master_edges)
     reach = 0.5 + (slide or 0.0) / L[:, None]
-    overlap = (hi > -reach) & (lo < 1.0 + reach)
-    facing = (n @ nm.T) < 0.0
-    mid = 0.5 * (C + D)
-    dist = np.abs(np.einsum("mk,ek->em", mid, n) - np.einsum("ek,ek->e", P, n)[:, None])
+    overlap = (np.maximum(xc, xd) > -reach) & (np.minimum(xc, xd) < 1.0 + reach)
+    dist = np.abs(0.5 * (gc + gd)) * L[:, None]  # the master segment's midpoint
     cand = overlap & facing & (dist <= search)
     edge_of = {(int(a), int(b)): k for k, (a, b) in enumerate(slave_edges)}
     lists = []
@@ -322,15 +311,23 @@ def _projections(seg, x, master_edges):
     return xc, xd, gc, gd, facing
 
 
-def partners(x: np.ndarray, patches: Patches, master_edges: np.ndarray, reach: float = 1.0,
-             chunk: int = 256) -> np.ndarray:
-    """(nc, n_master_edges) True where a master segment is, in the configuration
-    ``x`` (all nodes' positions), a partner of a slave node: it faces one of the
-    node's slave segments, overlaps it, and lies within ``reach`` segment lengths
-    of it along the normal over the overlap."""
-    segs, mask = _slave_segments(np.asarray(x, float), patches)
+def partner_distances(x: np.ndarray, patches: Patches, master_edges: np.ndarray,
+                      memo: dict | None = None, chunk: int = 256) -> np.ndarray:
+    """(nc, n_master_edges): in the configuration ``x`` (all nodes' positions),
+    the normal distance, in segment lengths, between a master segment and a
+    slave node's segment it faces and overlaps (the smaller of the two at the
+    overlap's ends, the smaller over the node's two segments); inf where it does
+    not face or overlap either. ``memo`` (a dict kept by the caller) holds the
+    last configuration's result, so the increment checks and the switch
+    detector compute it once per increment."""
+    x = np.asarray(x, float)
+    if memo is not None:
+        kept = memo.get("last")
+        if kept is not None and kept[0] is patches and np.array_equal(kept[1], x):
+            return kept[2]
+    segs, mask = _slave_segments(x, patches)
     nc = patches.nodes.shape[0]
-    out = np.zeros((nc, len(master_edges)), bool)
+    out = np.full((nc, len(master_edges)), np.inf)
     for e in range(2):
         for lo in range(0, nc, chunk):
             sl = slice(lo, min(lo + chunk, nc))
@@ -342,9 +339,21 @@ def partners(x: np.ndarray, patches: Patches, master_edges: np.ndarray, reach: f
             den = np.where(np.abs(xd - xc) > 1e-300, xd - xc, 1.0)
             ga = gc + (a - xc) / den * (gd - gc)
             gb = gc + (b - xc) / den * (gd - gc)
-            near = np.minimum(np.abs(ga), np.abs(gb)) <= reach
-            out[sl] |= over & facing & near & mask[e, sl, None]
+            near = np.minimum(np.abs(ga), np.abs(gb))
+            on = over & facing & mask[e, sl, None]
+            out[sl] = np.minimum(out[sl], np.where(on, near, np.inf))
+    if memo is not None:
+        memo["last"] = (patches, x.copy(), out)
     return out
+
+
+def partners(x: np.ndarray, patches: Patches, master_edges: np.ndarray, reach: float = 1.0,
+             memo: dict | None = None) -> np.ndarray:
+    """(nc, n_master_edges) True where a master segment is, in the configuration
+    ``x`` (all nodes' positions), a partner of a slave node: it faces one of the
+    node's slave segments, overlaps it, and lies within ``reach`` segment lengths
+    of it along the normal over the overlap (:func:`partner_distances`)."""
+    return partner_distances(x, patches, master_edges, memo) <= reach
 
 
 def candidates(patches: Patches, master_edges: np.ndarray) -> np.ndarray:

@@ -133,10 +133,12 @@ class IncrementChecks:
         self.solution = solution
         self.prev = None  # (t, x of the contact nodes, closed masks) per surface
         self.pairs = {}  # surface -> (master edges, candidate matrix): pairs, finite kinematics
+        self.memo = {}  # surface -> the partner distances of the last configuration (shared)
         for i, s in enumerate(model.surfaces):
             if s.patches is not None and not model.linear_contact[i]:
                 master = model.problem.mesh.edge_set(s.contact.obstacle.master)
                 self.pairs[i] = (master, mortar.candidates(s.patches, master))
+                self.memo[i] = model.cache.setdefault(("partner-distances", i), {})
 
     def _snapshot(self, w, t):
         m = self.model
@@ -197,9 +199,8 @@ class IncrementChecks:
         for i, (master, cand) in self.pairs.items():
             s = m.surfaces[i]
             closed = now[1][i][1]
-            outside = lambda reach: np.any(mortar.partners(x, s.patches, master, reach) & ~cand,  # noqa: E731
-                                           axis=1)
-            lost = (outside(1.0) & closed) | outside(0.5)
+            dist = np.where(cand, np.inf, mortar.partner_distances(x, s.patches, master, self.memo[i]))
+            lost = (np.any(dist <= 1.0, axis=1) & closed) | np.any(dist <= 0.5, axis=1)
             if lost.any():
                 first = int(s.nodes[np.argmax(lost)])
                 slide = s.contact.obstacle.slide

@@ -97,7 +97,7 @@ class SwitchDetector:
             closed = surf[i]["p_N"] > 0
             on = mortar.end_switches(x, s.patches, master, self.tol) & closed
             ends[i] = [int(n) for n in s.nodes[on]]
-            now = mortar.partners(x, s.patches, master)
+            now = mortar.partners(x, s.patches, master, memo=m.cache.setdefault(("partner-distances", i), {}))
             before = self._partners.get(i)
             if before is not None:
                 moved = np.any(now != before, axis=1) & closed
