@@ -79,6 +79,28 @@ def test_help_and_version(capsys):
     assert ":func:" not in text and "``" not in text  # no raw reStructuredText
 
 
+@pytest.mark.parametrize("command, module, names", [
+    ("hertz", "hertz", "HERTZ_SET"), ("hertz-friction", "hertz_friction", "FRICTION_SET"),
+    ("hertz3d", "hertz3d", "HERTZ3D_SET"), ("forging", "forging", "FORGING_SET"),
+    ("forging3d", "forging3d", "FORGING3D_SET"), ("cylinders", "cylinders", "CYLINDERS_SET"),
+    ("ironing", "ironing", "IRONING_SET")])
+def test_benchmark_commands_share_their_option_help(capsys, command, module, names):
+    """--out, --set and --no-fd of every benchmark command come from one helper
+    (options.command_options, options.path_options): the same words everywhere,
+    and the --set help names every parameter the command accepts."""
+    import importlib
+
+    with pytest.raises(SystemExit) as e:
+        main([command, "--help"])
+    assert e.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--out DIR output directory (created if needed; must be writable)" in text
+    assert "--no-fd skip the check of the DDM sensitivities by central finite differences (saves " in text
+    allowed = getattr(importlib.import_module(f"signorini.app.commands.{module}"), names)
+    for name in allowed:
+        assert f" {name} = " in text, name
+
+
 def test_old_command_name_runs_the_renamed_command_with_a_notice(capsys):
     """``optimise-forging`` is ``optimize-forging`` now (one spelling); the old name
     still runs it for a release and says so on stderr."""

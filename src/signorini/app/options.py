@@ -107,33 +107,62 @@ def with_defaults(texts: dict, defaults: dict) -> dict:
     return {k: f"{v}, default {defaults[k]:g}" if k in defaults else v for k, v in texts.items()}
 
 
-def set_help(allowed: dict) -> str:
-    first = next(iter(allowed))
-    return (f"set a named parameter (repeatable), e.g. --set {first}=1.5. Names: " +
-            "; ".join(f"{k} = {v}" for k, v in allowed.items()) + ". The mesh never changes with "
-            "these values (it is built from the defaults and the mesh options), so finite "
-            "differences of two runs equal the printed DDM sensitivities.")
+def set_help(allowed: dict, example: str | None = None, fixed_mesh: bool = True) -> str:
+    """The help of ``--set``: an example (default: the first name set to 1.5), every
+    name with its description and, ``fixed_mesh``, that the mesh does not follow the
+    values (false where a shape parameter moves the nodes, e.g. a die's radius)."""
+    example = example or f"{next(iter(allowed))}=1.5"
+    text = (f"set a named parameter (repeatable), e.g. --set {example}. Names: " +
+            "; ".join(f"{k} = {v}" for k, v in allowed.items()))
+    if fixed_mesh:
+        text += (". The mesh never changes with these values (it is built from the defaults and "
+                 "the mesh options), so finite differences of two runs equal the printed DDM "
+                 "sensitivities.")
+    return text
+
+
+#: the help of --refine on a 2-D mesh
+REFINE_HELP = "halve every cell N times (each level: 4x the unknowns)"
+
+
+def command_options(p, set_names: dict, *, example: str | None = None, fixed_mesh: bool = True,
+                    refine: str | None = REFINE_HELP) -> None:
+    """The options a benchmark command begins with: --out, --set (its help lists
+    ``set_names``, NAME -> description, see :func:`set_help`) and, unless ``refine``
+    is None, --refine with that help. The command's own mesh and model options
+    follow, then :func:`path_options`."""
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (created if needed; must be writable)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help=set_help(set_names, example, fixed_mesh))
+    if refine is not None:
+        p.add_argument("--refine", type=nonneg_int, default=0, metavar="N", help=refine)
+
+
+def path_options(p, *, steps: int | None = None, steps_help: str | None = None,
+                 fd: str = "two re-solves per parameter") -> None:
+    """--steps (the load path's increments; only with ``steps_help``, default
+    ``steps``) and --no-fd (``fd``: what the finite-difference check costs)."""
+    if steps_help is not None:
+        p.add_argument("--steps", type=positive_int, default=steps, metavar="N", help=steps_help)
+    p.add_argument("--no-fd", action="store_true",
+                   help="skip the check of the DDM sensitivities by central finite differences "
+                        f"(saves {fd})")
 
 
 def common_options(p: argparse.ArgumentParser, allowed: dict, steps: int, steps_help: str, a0: float,
             block: float = 20.0):
-    p.add_argument("--out", required=True, metavar="DIR",
-                   help="output directory (created if needed; must be writable)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help=set_help(allowed))
-    p.add_argument("--refine", type=nonneg_int, default=0, metavar="N",
-                   help="halve every cell N times (each level: 4x the unknowns)")
+    """The options of the plane-strain Hertz commands (hertz, hertz-friction)."""
+    command_options(p, allowed)
     p.add_argument("--block", type=positive_float, default=block, metavar="B",
                    help=f"block width and depth, in units of the nominal contact half-width a0 "
                         f"(a0 = {a0:.4g} mm: Hertz's half-width at the default parameters)")
     p.add_argument("--zone-width", type=positive_float, default=1.5, metavar="Z",
                    help="width of the uniformly fine mesh zone at the contact, in units of a0")
-    p.add_argument("--steps", type=positive_int, default=steps, metavar="N", help=steps_help)
     p.add_argument("--finite-strain", action="store_true",
                    help="neo-Hookean block with finite contact kinematics (default: linear "
                         "elasticity, linearised contact kinematics as in Hertz's theory)")
-    p.add_argument("--no-fd", action="store_true",
-                   help="skip the check of the DDM sensitivities by central finite differences "
-                        "(saves two re-solves per parameter)")
+    path_options(p, steps=steps, steps_help=steps_help)
     solver_options(p)
 
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..._jax import jax
 from ...contact.area import nodal_normals
 
 from ... import timing
@@ -18,8 +17,8 @@ from ...post import files as io, plots
 from ...problems.cylinders import DEFAULTS, analytical, cylinders_problem, pressure, shear
 from ...problems.hertz_friction import stick_zone
 from ..options import (
-    UNITS, Formatter, finish, fmt_fd, newton_options, parse_sets, positive_float, positive_int,
-    nonneg_int, solver_options, with_defaults)
+    UNITS, Formatter, command_options, finish, fmt_fd, newton_options, parse_sets, path_options,
+    positive_float, positive_int, solver_options, with_defaults)
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
     use_solver, write_summary)
@@ -53,21 +52,14 @@ def add_parser(sub) -> None:
                     "surface's tractions from its contact forces), summary.json (b and p0 against "
                     "Hertz, c/b against Mindlin, Newton log, DDM vs FD), pressure.png, "
                     "sensitivity.png, traction.png (with friction) and cylinders.vtu. " + UNITS)
-    p.add_argument("--out", required=True, metavar="DIR",
-                   help="output directory (created if needed; must be writable)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="set a named parameter (repeatable), e.g. --set mu=0.3. Names: " +
-                        "; ".join(f"{k}: {v}" for k, v in CYLINDERS_SET.items()))
-    p.add_argument("--refine", type=nonneg_int, default=0, metavar="N",
-                   help="halve every cell N times")
+    # the meshes follow R1 and R2 (shape parameters): no fixed-mesh note
+    command_options(p, CYLINDERS_SET, example="mu=0.3", fixed_mesh=False)
     p.add_argument("--n-fine", type=positive_int, default=24, metavar="N",
                    help="the lower body's cells across the fine zone (1.5 b0 on each side)")
     p.add_argument("--ratio", type=positive_float, default=2 / 3, metavar="F",
                    help="the upper body's cell count at the interface relative to the lower's")
-    p.add_argument("--steps", type=positive_int, default=None, metavar="N",
-                   help=f"load increments (default {STEPS} frictionless, {STEPS_FRICTION} with friction)")
-    p.add_argument("--no-fd", action="store_true",
-                   help="skip the check of the DDM sensitivities by central finite differences")
+    path_options(p, steps_help=f"load increments (default {STEPS} frictionless, {STEPS_FRICTION} "
+                               "with friction)")
     solver_options(p)
     newton_options(p, RTOL)
 
@@ -206,12 +198,25 @@ def _upper(sol) -> dict:
     A = np.asarray(m.kinematics.contact_areas(X, master, nodes))
     N = np.asarray(nodal_normals(X, master, nodes))
     state = sol.state_before(-1)[0] if m.has_history else None
-    rows = jax.jit(lambda w, p: m.residual(w, p, 1.0, state, None, "rest")
-                   + m.external_forces(m.reference(p), p, 1.0))(sol.increments[-1].w, sol.jax_params)
+    rows = _contact_rows(m)(sol.increments[-1].w, sol.jax_params, state)
     t = -np.asarray(rows)[: m.dim * m.n_nodes].reshape(-1, m.dim)[nodes] / A[:, None]
     order = np.argsort(X[nodes, 0])
     return {"x": X[nodes, 0][order], "y": X[nodes, 1][order],
             "p_N": -np.sum(t * N, axis=1)[order], "p_T": t[order, 0]}
+
+
+def _contact_rows(m):
+    """(w, params, state) -> the contact forces of the residual at t = 1 (its
+    "rest" part, contact minus external forces, plus the external forces): one
+    program per model (in its cache), kept between processes by the model's
+    program facility, so that a run of a model of the same structure loads it
+    instead of tracing and compiling it again."""
+    key = ("cylinders", "contact_rows")
+    if key not in m.cache:
+        m.cache[key] = m.program(lambda w, p, state: m.residual(w, p, 1.0, state, None, "rest")
+                                 + m.external_forces(m.reference(p), p, 1.0),
+                                 "cylinders_contact_rows")
+    return m.cache[key]
 
 
 def _figures(out, c, up, an, v, friction: bool, names) -> None:

@@ -14,8 +14,8 @@ from ...problems import forging
 from ...problems.forging import (
     DEFAULTS, H0, TABLE1, body_volume, die_force, forging_problem, lateral_nodes, objective, options)
 from ..options import (
-    Formatter, adjoint_option, finish, forging_mesh_options, newton_options, parse_sets,
-    print_adjoint, print_ddm_fd, set_help, solver_options, with_defaults)
+    Formatter, adjoint_option, command_options, finish, forging_mesh_options, newton_options,
+    parse_sets, path_options, print_adjoint, print_ddm_fd, solver_options, with_defaults)
 from ..runner import (
     Timer, adjoint_report, fd_table, newton_log, prepare_output, solve_or_report, solver_entries,
     summary_header, use_solver, write_summary)
@@ -49,13 +49,9 @@ def add_parser(sub) -> None:
                     "sensitivities to phi0..phi4, mu and sigma_y, checked by central differences. "
                     "Writes summary.json, table1.csv, shape.png, force.png and forging.pvd. "
                     "Units: lengths in h0, stresses in the units of E.")
-    fg.add_argument("--out", required=True, metavar="DIR",
-                    help="output directory (created if needed; must be writable)")
-    fg.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help=set_help(FORGING_SET))
-    forging_mesh_options(fg)
-    fg.add_argument("--no-fd", action="store_true",
-                    help="skip the central-difference check (14 re-solves of the whole path)")
+    command_options(fg, FORGING_SET, refine=None)
+    forging_mesh_options(fg)  # --mesh and --steps, shared with optimize-forging
+    path_options(fg, fd="14 re-solves of the whole path")
     adjoint_option(fg, "F")
     newton_options(fg, 1e-11)
     solver_options(fg)

@@ -14,8 +14,8 @@ from ...problems.forging3d import (
     DEFAULTS, REPORTED, die_force, elastic_volume_ratio, forging3d_problem, options,
     out_of_round, volume)
 from ..options import (
-    Formatter, adjoint_option, finish, newton_options, parse_sets, positive_int, print_adjoint,
-    print_ddm_fd, set_help, solver_options, with_defaults)
+    Formatter, adjoint_option, command_options, finish, newton_options, parse_sets, path_options,
+    print_adjoint, print_ddm_fd, solver_options, with_defaults)
 from ..runner import (
     Timer, adjoint_report, fd_table, newton_log, prepare_output, solve_or_report, solver_entries,
     summary_header, use_solver, write_summary)
@@ -45,16 +45,11 @@ def add_parser(sub) -> None:
                     "sigma_y checked by central differences of the whole process. Writes "
                     "summary.json, sensitivities.csv, force.csv, force.png, lateral.csv and the "
                     "VTU series forging3d.pvd. Lengths in h0, stresses in the units of E.")
-    p.add_argument("--out", required=True, metavar="DIR",
-                   help="output directory (created if needed; must be writable)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help=set_help(FORGING3D_SET))
+    command_options(p, FORGING3D_SET, refine=None)
     p.add_argument("--mesh", default="6x6", metavar="NSxNZ",
                    help="cells across the half-section (each way) and along the half-height")
-    p.add_argument("--steps", type=positive_int, default=20, metavar="N",
-                   help="equal increments of the die stroke")
-    p.add_argument("--no-fd", action="store_true",
-                   help="skip the central-difference check (10 re-solves of the whole path)")
+    path_options(p, steps=20, steps_help="equal increments of the die stroke",
+                 fd="10 re-solves of the whole path")
     adjoint_option(p, "F")
     newton_options(p, 1e-10)
     solver_options(p)

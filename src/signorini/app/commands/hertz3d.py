@@ -17,8 +17,9 @@ from ...problems import hertz
 from ...problems.hertz3d import DEFAULTS, analytical, hertz3d_problem, pressure, pressure_dR
 from ...problems.hertz_friction import stick_zone
 from ..options import (
-    UNITS, Formatter, adjoint_option, coarse_start_option, finish, fmt_fd, newton_options, nonneg_int, parse_sets,
-    positive_float, positive_int, print_adjoint, solver_options, with_defaults)
+    UNITS, Formatter, adjoint_option, coarse_start_option, command_options, finish, fmt_fd,
+    newton_options, parse_sets, path_options, positive_float, positive_int, print_adjoint,
+    solver_options, with_defaults)
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
     summary_header, use_solver, write_summary)
@@ -53,13 +54,8 @@ def add_parser(sub) -> None:
                     "sensitivity.png (and traction.png with friction) and hertz3d.vtu. "
                     "--axisymmetric solves the same problem with the axisymmetric model and writes "
                     "the same files. " + UNITS)
-    p.add_argument("--out", required=True, metavar="DIR",
-                   help="output directory (created if needed; must be writable)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="set a named parameter (repeatable), e.g. --set mu=0.3. Names: " +
-                        "; ".join(f"{k}: {v}" for k, v in HERTZ3D_SET.items()))
-    p.add_argument("--refine", type=nonneg_int, default=0, metavar="N",
-                   help="halve every cell N times (each level: 8x the unknowns in 3-D)")
+    command_options(p, HERTZ3D_SET, example="mu=0.3",
+                    refine="halve every cell N times (each level: 8x the unknowns in 3-D)")
     p.add_argument("--n-fine", type=positive_int, default=8, metavar="N",
                    help="cells across the fine zone at --refine 0")
     p.add_argument("--block", type=positive_float, default=12.0, metavar="B",
@@ -67,14 +63,10 @@ def add_parser(sub) -> None:
                         f"(a0 = {a0:.4g} mm: Hertz's radius at the default parameters)")
     p.add_argument("--zone-width", type=positive_float, default=1.5, metavar="Z",
                    help="width of the uniformly fine mesh zone at the contact, in units of a0")
-    p.add_argument("--steps", type=positive_int, default=None, metavar="N",
-                   help=f"equal load increments (default {STEPS} frictionless, "
-                        f"{STEPS_FRICTION} with friction)")
     p.add_argument("--axisymmetric", action="store_true",
                    help="solve the same sphere problem with the axisymmetric model")
-    p.add_argument("--no-fd", action="store_true",
-                   help="skip the check of the DDM sensitivities by central finite differences "
-                        "(saves two re-solves per parameter)")
+    path_options(p, steps_help=f"equal load increments (default {STEPS} frictionless, "
+                               f"{STEPS_FRICTION} with friction)")
     adjoint_option(p, "the contact work W = sum A p_N (g0 - g)")
     coarse_start_option(p)
     solver_options(p)

@@ -15,8 +15,8 @@ from ...post import files as io, plots
 from ...problems.ironing import CELLS, DEFAULTS, T_PRESS, die_force, ironing_problem, press, slide
 from ...sensitivity import nonsmooth
 from ..options import (
-    UNITS, Formatter, finish, fmt_fd, newton_options, nonneg_int, parse_sets, positive_int,
-    solver_options, with_defaults)
+    UNITS, Formatter, command_options, finish, fmt_fd, newton_options, parse_sets,
+    path_options, positive_int, solver_options, with_defaults)
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
     use_solver, write_summary)
@@ -49,21 +49,14 @@ def add_parser(sub) -> None:
                     "differences of the whole path), contact.csv (the block's top at the end), "
                     "summary.json (forces, DDM vs FD, partner changes and switch points of the "
                     "path, Newton log), force.png, sensitivity.png and an ironing.pvd series. " + UNITS)
-    p.add_argument("--out", required=True, metavar="DIR",
-                   help="output directory (created if needed; must be writable)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="set a named parameter (repeatable), e.g. --set mu=0.2. Names: " +
-                        "; ".join(f"{k}: {v}" for k, v in IRONING_SET.items()))
-    p.add_argument("--refine", type=nonneg_int, default=0, metavar="N",
-                   help="halve every cell of both bodies N times")
+    # the die's mesh follows R (a shape parameter): no fixed-mesh note
+    command_options(p, IRONING_SET, example="mu=0.2", fixed_mesh=False,
+                    refine="halve every cell of both bodies N times")
     p.add_argument("--cells", type=positive_int, default=CELLS, metavar="N",
                    help="the block's cells along its top (at least 24); its height gets N/8, the "
                         "die's arc N/6 (cells 1.5 times the block's), its height a quarter of that")
-    p.add_argument("--steps", type=positive_int, default=STEPS, metavar="N",
-                   help=f"load increments over the whole path (the first {T_PRESS:g} of them press)")
-    p.add_argument("--no-fd", action="store_true",
-                   help="skip the check of the DDM sensitivities by central differences (two "
-                        "re-solves of the path per parameter)")
+    path_options(p, steps=STEPS, fd="two re-solves of the path per parameter",
+                 steps_help=f"load increments over the whole path (the first {T_PRESS:g} of them press)")
     solver_options(p)
     newton_options(p, RTOL)
 
