@@ -337,3 +337,22 @@ def test_partner_distances_computed_once_per_increment(monkeypatch):
     assert np.isfinite(d).any() and np.all(d[np.isfinite(d)] >= 0)
     for reach in (0.5, 1.0):
         assert np.array_equal(mortar.partners(x, surf.patches, master, reach), d <= reach)
+
+
+def test_predictor_restarts_where_the_load_path_turns(monkeypatch):
+    """P over the first half of the path, then Q: the increment after the turn
+    starts from the last converged state (extrapolating would continue P), every
+    other increment from the extrapolation; the converged path is the same."""
+    from signorini.algorithms import stepping
+
+    pb = cylinders_problem({"mu": 0.3, "Q": 0.015}, n_fine=12)
+    seen = []
+    real = stepping._LoadPath._smooth_path
+    monkeypatch.setattr(stepping._LoadPath, "_smooth_path",
+                        lambda self, t_new: seen.append((round(t_new, 9), r := real(self, t_new))) or r)
+    sol = sg.solve(pb, steps=10)
+    assert [t for t, smooth in seen if not smooth] == [0.6]  # P ends at t = 0.5
+    assert [t for t, _ in seen] == [round(0.1 * k, 9) for k in range(2, 11)]  # from the second on
+    plain = sg.solve(pb, steps=10, options=sg.NewtonOptions(predictor="none"))
+    assert sol.newton_iterations[5] == plain.newton_iterations[5]  # the same start after the turn
+    assert np.allclose(sol.increments[-1].w, plain.increments[-1].w, rtol=0, atol=1e-10 * np.abs(plain.increments[-1].w).max())

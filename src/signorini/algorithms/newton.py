@@ -51,7 +51,9 @@ class NewtonOptions:
             residual that stops falling is a failure.
         predictor: first iterate of an increment after the first:
             ``"extrapolate"`` (default) continues the last two converged
-            increments linearly (free DOFs, multipliers included), ``"none"``
+            increments linearly (free DOFs, multipliers included), except
+            after a turn of the load path (a load phase ending, another
+            starting), where it starts from the last state; ``"none"``
             starts from the last converged state. Only the start changes, not
             the converged point (docs/theory.md §10).
     """

@@ -21,7 +21,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .. import timing
-from .._jax import to_device
+from .._jax import jax, to_device
 from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
 from ..linsolve import Pardiso, TangentSolver, for_model, get_solver, openblas_single_thread
@@ -295,6 +295,7 @@ class _LoadPath:
         self.inc_checks.start(self.w)
         self.t, self.dt_nominal = 0.0, 1.0 / steps
         self.t_prev, self.w_prev = None, None  # the converged state before (t, w), for the predictor
+        self.loads = {}  # t -> the load state at t (_load_state): the predictor's kink test
         self.guides = None if guide is None else _Guide(guide, model)
         self.dt, self.cuts, self.total_cuts = self.dt_nominal, 0, 0
 
@@ -358,7 +359,7 @@ class _LoadPath:
         # three needs more Newton iterations on the frictional Hertz path: zones growing
         # like sqrt(t) are not smooth in t; docs/theory.md §10.3)
         predicted = (not started and not guided and self.options.predictor == "extrapolate"
-                     and self.w_prev is not None)
+                     and self.w_prev is not None and self._smooth_path(t_new))
         if started or guided or predicted:
             # the reference norm of the convergence test is that of the unpredicted start
             # (the last state under the new load), so that a better start does not make
@@ -374,6 +375,40 @@ class _LoadPath:
                 start = w + (t_new - t) / (t - self.t_prev) * (w - self.w_prev)
             w_trial[model.free] = start[model.free]
         return w_trial, ref
+
+    #: a load path whose rate changes by more than this fraction from one increment
+    #: to the next has a kink there (a load phase ending, another starting)
+    KINK = 0.5
+
+    def _load_state(self, t) -> list:
+        """What the path prescribes at t: the external forces on the free DOFs, the
+        prescribed displacements and each obstacle's geometry."""
+        loads = self.loads.get(t)
+        if loads is None:
+            model, params = self.model, self.params
+            f, geometry = model.contact_geometry(params, t)[:2]
+            loads = [np.asarray(f)[model.free]]
+            if model.prescribed.size:
+                loads.append(np.asarray(model.prescribed_at(params, t), float).ravel())
+            for g in geometry:
+                leaves = [np.ravel(np.asarray(v, float)) for v in jax.tree_util.tree_leaves(g[3])]
+                loads.append(np.concatenate(leaves) if leaves else np.zeros(0))
+            self.loads[t] = loads
+        return loads
+
+    def _smooth_path(self, t_new) -> bool:
+        """Whether the load path keeps its rate from the last increment into the
+        next, each of forces, prescribed displacements and obstacle positions to
+        :attr:`KINK`: where one load phase ends and another begins (a die pressed
+        in, then slid), extrapolating the last increment continues the old phase,
+        and Newton starts better from the last state (docs/theory.md §10.3)."""
+        t, t0 = self.t, self.t_prev
+        for a, b, c in zip(self._load_state(t0), self._load_state(t), self._load_state(t_new)):
+            old, new = (b - a) / (t - t0), (c - b) / (t_new - t)
+            scale = max(float(np.linalg.norm(old)), float(np.linalg.norm(new)))
+            if scale > 0 and float(np.linalg.norm(new - old)) > self.KINK * scale:
+                return False
+        return True
 
     def _cut(self, e: StepFailure, t_new, w_trial) -> None:
         """Halve the increment after a Newton failure, or end the solve when the
@@ -423,6 +458,7 @@ class _LoadPath:
         self.inc_checks.after(w_trial, t_new, len(sol.increments))
         self.t_prev, self.w_prev = self.t, self.w
         self.w, self.t = w_trial, t_new
+        self.loads = {k: v for k, v in self.loads.items() if k in (self.t_prev, self.t)}
         self.cuts = 0  # max_cuts counts the halvings of one increment
         if self.dt < self.dt_nominal:
             self.dt = min(2.0 * self.dt, self.dt_nominal)  # grow back after a successful cut increment
