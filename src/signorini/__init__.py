@@ -44,7 +44,7 @@ _WHERE = {
                      "UnknownParameterError"), "errors"),
     **dict.fromkeys(("FBar", "Standard"), "fem.element"),
     **dict.fromkeys(("Axisymmetric", "PlaneStrain"), "fem.kinematics"),
-    **dict.fromkeys(("Fixed", "Pressure", "Traction"), "fem.loads"),
+    **dict.fromkeys(("Fixed", "Pressure", "Ramp", "Traction"), "fem.loads"),
     **dict.fromkeys(("Mesh", "graded_coordinates", "merge", "rectangle"), "fem.mesh"),
     **dict.fromkeys(("read_mesh",), "fem.meshfile"),
     **dict.fromkeys(("Bodies", "J2Plasticity", "LinearElastic", "NeoHooke"), "materials"),
@@ -58,7 +58,7 @@ __all__ = [
     "Mesh", "rectangle", "graded_coordinates", "read_mesh", "merge",
     "PlaneStrain", "Axisymmetric", "Standard", "FBar",
     "LinearElastic", "NeoHooke", "J2Plasticity", "Bodies",
-    "Fixed", "Pressure", "Traction",
+    "Fixed", "Pressure", "Traction", "Ramp",
     "Circle", "Line", "Contact", "AugmentedLagrangian", "Coulomb", "Penalty", "equivalent_areas", "pair",
     "Problem",
     # solving

@@ -25,6 +25,29 @@ def _linear(t):
     return t
 
 
+@dataclass(frozen=True)
+class Ramp:
+    """A load applied between the load factors ``start`` and ``end``: the ramp
+    is 0 before ``start``, rises linearly to 1 at ``end`` and stays 1 after, so
+    loads applied one after another are ramps of consecutive intervals, e.g.
+    ``Pressure("top", "P", ramp=Ramp(0, 0.5))`` then
+    ``Traction("side", ("Q", 0.0), ramp=Ramp(0.5, 1))``. Unlike a function
+    written for it, a ``Ramp`` is known by its values, so a problem built again
+    with it shares its compiled programs, also with later processes."""
+    start: float = 0.0
+    end: float = 1.0
+
+    def __post_init__(self):
+        ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                 for v in (self.start, self.end))
+        if not ok or not self.start < self.end:
+            raise InputError(f"Ramp(start, end) needs two finite numbers with start < end, got "
+                             f"start={self.start!r}, end={self.end!r}")
+
+    def __call__(self, t):
+        return jnp.clip((t - self.start) / (self.end - self.start), 0.0, 1.0)
+
+
 def _edge_weights(X, edges, kinematics):
     """(n_edges, 2): consistent weights int N_a dA of each edge end (per unit
     thickness: L/2 each; axisymmetric: 2 pi L (2 R_a + R_b) / 6)."""

@@ -39,13 +39,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jax import jnp
 
 from ..contact import AugmentedLagrangian, Coulomb
 from ..contact.mortar import pair
 from .values import checked_values
 from ..errors import InputError
-from ..fem.loads import Fixed, Pressure, Traction
+from ..fem.loads import Fixed, Pressure, Ramp, Traction
 from ..fem.mesh import Mesh, graded_coordinates, merge, rectangle
 from ..materials import Bodies, LinearElastic
 from ..model.problem import Problem
@@ -225,11 +224,5 @@ def _whole(t):
     return t
 
 
-def _first(t):
-    """P over the first half of the path."""
-    return jnp.minimum(2.0 * t, 1.0)
-
-
-def _second(t):
-    """Q over the second half of the path."""
-    return jnp.maximum(2.0 * t - 1.0, 0.0)
+#: P over the first half of the path, Q over the second (Mindlin's loading)
+_first, _second = Ramp(0.0, 0.5), Ramp(0.5, 1.0)

@@ -28,13 +28,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jax import jnp
 
 from ..contact import Coulomb
 from ..contact.mortar import pair
 from .values import checked_values
 from ..errors import InputError
-from ..fem.loads import Fixed
+from ..fem.loads import Fixed, Ramp
 from ..fem.mesh import Mesh, merge, rectangle
 from ..materials import Bodies, NeoHooke
 from ..model.problem import Problem
@@ -64,14 +63,8 @@ def cell_counts(cells: int = CELLS, refine: int = 0) -> tuple[int, int, int, int
     return n, max(n // 8, 2), arc, max(arc // 4, 2)
 
 
-def press(t):
-    """The die's depth over the path, relative to d."""
-    return jnp.minimum(t / T_PRESS, 1.0)
-
-
-def slide(t):
-    """The die's travel along the block, relative to s."""
-    return jnp.maximum((t - T_PRESS) / (1.0 - T_PRESS), 0.0)
+#: the die's depth over the path, relative to d, and its travel along the block, relative to s
+press, slide = Ramp(0.0, T_PRESS), Ramp(T_PRESS, 1.0)
 
 
 def check_params(params: dict | None) -> dict:
