@@ -356,3 +356,29 @@ def test_predictor_restarts_where_the_load_path_turns(monkeypatch):
     plain = sg.solve(pb, steps=10, options=sg.NewtonOptions(predictor="none"))
     assert sol.newton_iterations[5] == plain.newton_iterations[5]  # the same start after the turn
     assert np.allclose(sol.increments[-1].w, plain.increments[-1].w, rtol=0, atol=1e-10 * np.abs(plain.increments[-1].w).max())
+
+
+def test_coarse_to_fine_start_of_two_bodies():
+    """A coarser two-body mesh guides the load path of a finer one: the same
+    solution in fewer Newton iterations; the interpolation keeps to each body (a
+    fine node next to the other body takes none of its values)."""
+    from signorini.algorithms.coarse_to_fine import solve_coarse_to_fine
+    from signorini.algorithms.prolongation import Prolongation
+    from signorini.algorithms.stepping import model_for
+
+    coarse, fine = (cylinders_problem({"mu": 0.3, "Q": 0.015}, n_fine=n) for n in (12, 24))
+    direct = sg.solve(fine, steps=10)
+    guided, levels = solve_coarse_to_fine([coarse, fine], steps=10)
+    w, w0 = guided.increments[-1].w, direct.increments[-1].w
+    assert np.abs(w - w0).max() <= 1e-10 * np.abs(w0).max()
+    assert sum(levels[-1]["newton_iterations"]) < 0.8 * sum(direct.newton_iterations)  # measured 25 vs 36
+    P = Prolongation.between(model_for(coarse), model_for(fine)).matrix
+    mc, mf = coarse.mesh, fine.mesh
+    dim = 2
+    for body in ("lower", "upper"):
+        other = "upper" if body == "lower" else "lower"
+        rows = np.ravel(np.column_stack([dim * mf.node_sets[body] + k for k in range(dim)]))
+        cols = np.ravel(np.column_stack([dim * mc.node_sets[other] + k for k in range(dim)]))
+        assert P[rows][:, cols].nnz == 0
+        rows_c = np.ravel(np.column_stack([dim * mc.node_sets[body] + k for k in range(dim)]))
+        assert np.allclose(np.asarray(P[rows][:, rows_c].sum(axis=1)).ravel(), 1.0)  # partition of unity

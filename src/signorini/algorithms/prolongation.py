@@ -61,6 +61,30 @@ def _along_surface(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((np.column_stack([1.0 - s, s]).ravel(), (rows, idx.ravel())), shape=(nf, nc))
 
 
+def _bodywise_weights(mc, mf, Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
+    """(nf, nc) node interpolation body by body (:func:`signorini.fem.mesh.parts`,
+    matched by name): a node of one body near another (two bodies in contact)
+    takes values of its own body only. One body: :func:`_linear_weights`."""
+    from ..fem.mesh import parts  # noqa: PLC0415  (lazy: scipy.sparse.csgraph, coarse starts only)
+
+    pc, pf = parts(mc), parts(mf)
+    if len(pc) == 1 and len(pf) == 1:
+        return _linear_weights(Xc, Xf)
+    coarse = {name: nodes for name, nodes, _ in pc}
+    if sorted(coarse) != sorted(name for name, _, _ in pf):
+        raise InputError(f"prolong: the coarse and fine meshes have other bodies "
+                         f"({sorted(coarse)} and {sorted(n for n, _, _ in pf)})")
+    rows, cols, vals = [], [], []
+    for name, nf, _ in pf:
+        nc = coarse[name]
+        B = _linear_weights(Xc[nc], Xf[nf]).tocoo()
+        rows.append(nf[B.row])
+        cols.append(nc[B.col])
+        vals.append(B.data)
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(len(Xf), len(Xc)))
+
+
 class Prolongation:
     """The interpolation of unknowns from a coarse model to a fine one, built once
     as a sparse matrix (it is linear in the coarse unknowns).
@@ -85,7 +109,8 @@ class Prolongation:
             self.matrix = sp.identity(fm.n_dof, format="csr")  # the same mesh (other parameters)
             return
         blocks = []
-        Pu = _linear_weights(Xc, Xf)  # nodes -> nodes; DOFs interleave (x, y[, z]) per node
+        Pu = _bodywise_weights(cm.problem.mesh, fm.problem.mesh, Xc, Xf)  # nodes -> nodes;
+        # DOFs interleave (x, y[, z]) per node
         blocks.append((sp.kron(Pu, sp.identity(Xf.shape[1])), 0, 0))
         for sc, sf in zip(cm.surfaces, fm.surfaces):
             Ps = _along_surface(Xc[sc.nodes], Xf[sf.nodes])
