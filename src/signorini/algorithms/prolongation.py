@@ -11,8 +11,8 @@ from ..errors import InputError
 
 def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) interpolation matrix: piecewise linear on the Delaunay triangulation
-    (tetrahedralisation in 3-D) of the coarse points Xc; a point outside it takes
-    the nearest coarse point."""
+    (tetrahedralisation in 3-D) of the coarse points Xc; a point outside it is
+    extrapolated linearly from a simplex at its nearest coarse point."""
     nf, nc = len(Xf), len(Xc)
     from scipy.spatial import Delaunay, cKDTree  # lazy: heavy (scipy.special), coarse starts only
 
@@ -30,10 +30,30 @@ def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
         cols.append(tri.simplices[s].ravel())
         vals.append(bary.ravel())
     if (~inside).any():
-        _, near = cKDTree(Xc).query(Xf[~inside])
-        rows.append(np.nonzero(~inside)[0])
-        cols.append(near)
-        vals.append(np.ones(near.size))
+        # outside the triangulation (a curved boundary: the coarse chords cut inside
+        # the fine nodes): extrapolated linearly from the simplex, among those of the
+        # nearest coarse point, whose barycentric coordinates there are least negative
+        # (a nearest-point value instead made the surface's gaps wrong by a cell's
+        # slope: a guided two-body start then needed more iterations than one from rest)
+        out = np.nonzero(~inside)[0]
+        _, near = cKDTree(Xc).query(Xf[out])
+        flat = tri.simplices.ravel()
+        order = np.argsort(flat, kind="stable")
+        first = np.searchsorted(flat[order], np.arange(nc + 1))
+        for i, k in zip(out, near):
+            cand = order[first[k]:first[k + 1]] // (d + 1)  # the simplices of point k
+            if not cand.size:  # a point the triangulation left out: its value
+                rows.append([i])
+                cols.append([k])
+                vals.append([1.0])
+                continue
+            T = tri.transform[cand]
+            b = np.einsum("mij,mj->mi", T[:, :d], Xf[i] - T[:, d])
+            bary = np.column_stack([b, 1.0 - b.sum(axis=1)])
+            best = int(np.argmax(bary.min(axis=1)))
+            rows.append(np.full(d + 1, i))
+            cols.append(tri.simplices[cand[best]])
+            vals.append(bary[best])
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(nf, nc))
 

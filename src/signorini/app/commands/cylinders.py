@@ -14,11 +14,14 @@ from ... import timing
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
 from ...post import files as io, plots
+from ...algorithms.coarse_to_fine import warn_failed_levels
+from ...problems import hertz
 from ...problems.cylinders import DEFAULTS, analytical, cylinders_problem, pressure, shear
 from ...problems.hertz_friction import stick_zone
 from ..options import (
-    UNITS, Formatter, command_options, finish, fmt_fd, newton_options, parse_sets, path_options,
-    positive_float, positive_int, solver_options, with_defaults)
+    UNITS, Formatter, coarse_start_option, command_options, finish, fmt_coarse, fmt_fd,
+    newton_options, parse_sets, path_options, positive_float, positive_int, solver_options,
+    with_defaults)
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
     use_solver, write_summary)
@@ -60,6 +63,7 @@ def add_parser(sub) -> None:
                    help="the upper body's cell count at the interface relative to the lower's")
     path_options(p, steps_help=f"load increments (default {STEPS} frictionless, {STEPS_FRICTION} "
                                "with friction)")
+    coarse_start_option(p)
     solver_options(p)
     newton_options(p, RTOL)
 
@@ -68,14 +72,15 @@ def execute(args) -> int:
     params = parse_sets(args.set, CYLINDERS_SET)
     s = run(args.out, params, refine=args.refine, n_fine=args.n_fine, ratio=args.ratio,
             steps=args.steps, fd_check=not args.no_fd, solver=args.solver,
-            options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
+            options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter),
+            coarse_start=not args.no_coarse_start)
     zone = f", c/b = {s['c_over_b']['computed']:.3f} (Mindlin {s['c_over_b']['analytical']:.3f})" \
         if isinstance(s.get("c_over_b"), dict) else ""
     print(f"Two cylinders ({s['mesh']['dofs']} DOFs, {s['steps']} increment(s)): "
           f"p0 = {s['p0']['computed']:.5g} (Hertz {s['p0']['analytical']:.5g}, "
           f"{100 * s['p0']['rel_error']:+.2f} %), b = {s['b']['computed']:.4g} "
           f"(Hertz {s['b']['analytical']:.4g}){zone}; Newton iterations "
-          f"{sum(s['newton_iterations'])}; DDM vs FD (max rel. diff.): "
+          f"{sum(s['newton_iterations'])}{fmt_coarse(s['coarse_start'])}; DDM vs FD (max rel. diff.): "
           f"{fmt_fd(s['ddm_vs_fd_rel_diff'])}; solver {s['solver']}")
     return finish(args, s)
 
@@ -83,11 +88,13 @@ def execute(args) -> int:
 @timing.recorded
 def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, ratio: float = 2 / 3,
         steps=None, fd_check: bool = True, sensitivities=None, options=None, fd_step: float = 1e-5,
-        solver="auto") -> dict:
+        solver="auto", coarse_start: bool = True) -> dict:
     """Solve the two-cylinder problem with DDM sensitivities and write the results
     into ``out``; returns the summary. Sensitivities: R1, R2, E1, P (and mu, Q with
     friction). The FD check re-solves the whole path at phi +- h (h = ``fd_step``
-    max(|phi|, 1)) and compares p_N and p_T over the contact zone."""
+    max(|phi|, 1)) and compares p_N and p_T over the contact zone. From 50,000
+    DOFs on (``coarse_start``) the load path is started from coarser meshes of
+    the same grid lines, solved along it first (docs/theory.md §10.3)."""
     clock = Timer()
     out = prepare_output(out)
     options = options or NewtonOptions(rtol=RTOL)
@@ -109,8 +116,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
                  "refine": refine, "n_fine": n_fine, "ratio": ratio}
     t0 = clock()
     timing.mark("solve")
+    guide, coarse = None, []
+    skipped = hertz.coarse_start_skipped(pb, coarse_start)
+    if skipped is None:
+        guide, coarse = hertz.coarse_start_for(
+            pb, lambda r, n: cylinders_problem(params, refine=r, n_fine=n, ratio=ratio),
+            refine, n_fine, steps=steps, options=options, solver=solver)
     sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          wrt=sensitivities, options=options, solver=solver)
+                          wrt=sensitivities, options=options, solver=solver, start=guide)
+    warn_failed_levels(sol, coarse)
     t_solve = clock() - t0
     timing.mark("output")
     c = _lower(sol, sensitivities)
@@ -143,13 +157,15 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
             return np.concatenate([cc["p_N"][inside], cc["p_T"][inside]])
         ddm_fd = {n: max_rel_diff(np.concatenate([c[f"dp_N_d{n}"][inside], c[f"dp_T_d{n}"][inside]]),
                                   finite_difference(pb, n, both, steps=steps, options=options,
-                                                    rel_step=fd_step, solver=solver))
+                                                    rel_step=fd_step, solver=solver,
+                                                    start=sol if guide is not None else None))
                   for n in sensitivities}
     timing.mark("output")
     summary = summary_header("converged", sol)
     summary.update({
         "params": v,
         "steps": steps,
+        "coarse_start": coarse if coarse else (skipped or "no coarser mesh"),
         **solver_entries(solver, sol),
         "mesh": {**mesh_info, "dofs": int(sol.model.n_dof)},
         "p0": {"computed": p0_fe, "analytical": float(an["p0"]), "rel_error": p0_fe / an["p0"] - 1},
