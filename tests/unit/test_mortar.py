@@ -407,3 +407,36 @@ def test_cylinders_cli_coarse_start(tmp_path, monkeypatch):
             rows = list(csv.DictReader(f))
         return np.array([[float(r["p_N"]), float(r["p_T"])] for r in rows])
     assert np.abs(read("g") - read("u")).max() <= 1e-9 * np.abs(read("u")).max()
+
+
+def test_rigid_die_and_pair_in_one_problem():
+    """A rigid flat die (frictionless, moved down by d) presses two stacked blocks
+    whose interface is a mortar pair (non-matching, 2:3): both contacts in one
+    Newton. The stress is uniform in both blocks, the pair's pressure is the
+    die's, the die's force is the bottom's reaction, and the DDM of the reaction
+    to d and E equals central differences."""
+    low = rectangle(np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))
+    up = rectangle(np.linspace(0, 1, 4), np.linspace(0.5, 1.0, 4))
+    mesh = merge({"low": low, "up": up})
+    params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "d": 0.01}
+    die = sg.Contact(sg.Line((0.0, 1.0), (0.0, -1.0), (0.0, lambda p: -p["d"])), "up.top",
+                     sg.AugmentedLagrangian())
+    pb = sg.Problem(mesh, LinearElastic(), params,
+                    fixed=[Fixed("low.bottom", 1), Fixed("low.left", 0), Fixed("up.left", 0)],
+                    contact=[die, pair("up.bottom", "low.top", sg.AugmentedLagrangian())])
+    sol = sg.solve(pb, steps=2, wrt=["d", "E"])
+    stress, _ = sol.stress()
+    syy = stress[..., 1, 1]
+    assert np.abs(syy - syy.mean()).max() <= 1e-10 * np.abs(syy).max() and syy.mean() < 0
+    top, interface = sol.contact(-1, 0), sol.contact(-1, 1)
+    assert np.all(top["p_N"] > 0) and np.allclose(interface["p_N"], -syy.mean(), rtol=1e-10)
+    bottom = np.asarray(mesh.node_sets["low.bottom"])
+    R = np.asarray(sol.reactions())[: 2 * mesh.n_nodes].reshape(-1, 2)
+    assert float(R[bottom, 1].sum()) == pytest.approx(-syy.mean() * 1.0, rel=1e-10)  # upward
+
+    def force(s):
+        return np.array([np.asarray(s.reactions())[: 2 * mesh.n_nodes].reshape(-1, 2)[bottom, 1].sum()])
+    for name in ("d", "E"):
+        ddm = np.asarray(sol.reaction_sensitivity(name))[: 2 * mesh.n_nodes].reshape(-1, 2)[bottom, 1].sum()
+        fd = sg.finite_difference(pb, name, force, steps=2, rel_step=1e-5)[0]
+        assert ddm == pytest.approx(fd, rel=1e-7), name
