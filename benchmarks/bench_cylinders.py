@@ -2,12 +2,20 @@
 rigid-obstacle frictional Hertz of about the same size: the cost of an increment.
 
 Each case in a fresh process: a first (compiling) solve with sensitivities,
-then the timed warm solves of the same problem (10 increments, mu = 0.3; the cylinders with
+then the timed warm solves of the same problem (mu = 0.3; the cylinders with
 Q = mu P / 2 after P), without sensitivities and with DDM sensitivities to
-R1 and mu (R and mu for the rigid one). Reports DOFs, Newton iterations, the
-warm solve time per increment and per Newton iteration, the DDM time, the
-peak resident memory, and the ratio of the two-body to the rigid increment.
-Prints a table and writes benchmarks/results/cylinders.csv.
+R1 and mu (R and mu for the rigid one). The rigid Hertz takes P in 10
+increments. The cylinders run twice: in 10 increments (P in 5, then Q in 5:
+each P increment twice the rigid one's load step) and in 20 (P in 10
+increments as the rigid one, then Q in 10): like with like is the P phase of
+the 20-increment path. Both also run started from coarser meshes solved along
+the same path (``*-guided``: solve_coarse_to_fine, the levels of
+signorini.problems.hertz.coarse_levels; the time includes the coarse levels),
+each compared with the rigid one started the same way. Reports DOFs, Newton iterations (all, and in the P
+phase), the warm solve time per increment (all, and in the P phase: Newton's
+assembly, factorisation and solve times) and per Newton iteration, the DDM
+time, the peak resident memory, and the ratios of the two-body to the rigid
+increment. Prints a table and writes benchmarks/results/cylinders.csv.
 
     python benchmarks/bench_cylinders.py [--sizes 10k,60k]
 """
@@ -32,27 +40,54 @@ HERE = Path(__file__).parent
 
 def one(kind: str, size: str) -> dict:
     import signorini as sg
-    if kind == "two-body":
+    from signorini.algorithms.coarse_to_fine import solve_coarse_to_fine
+    from signorini.problems.hertz import coarse_levels
+
+    steps, p_phase = STEPS, STEPS
+    guided = kind.endswith("guided")
+    if kind.startswith("two-body"):
         from signorini.problems.cylinders import cylinders_problem
-        pb = cylinders_problem({"mu": 0.3, "Q": 0.015}, n_fine=MESHES[size][0])
+
+        def build(refine, n_fine, force=False):
+            return cylinders_problem({"mu": 0.3, "Q": 0.015}, refine=refine, n_fine=n_fine)
+        r, n = 0, MESHES[size][0]
         names = ["R1", "mu"]
+        steps = int(kind.split("-")[2])
+        p_phase = steps // 2
     else:
         from signorini.problems.hertz_friction import hertz_friction_problem
+
+        def build(refine, n_fine, force=False):
+            return hertz_friction_problem(refine=refine, n_fine=n_fine, force_size=force)
         r, n = MESHES[size][1]
-        pb = hertz_friction_problem(refine=r, n_fine=n, force_size=True)
         names = ["R", "mu"]
-    sg.solve(pb, steps=STEPS, wrt=names)  # compiles (the DDM's programs too)
+    pb = build(r, n, True)
+    coarse = [build(*lv) for lv in coarse_levels(r, n)] if guided else []
+
+    def path(wrt=()):
+        if not coarse:
+            return sg.solve(pb, steps=steps, wrt=wrt), []
+        return solve_coarse_to_fine(coarse + [pb], steps=steps, wrt=wrt)
+    path(names)  # compiles (the DDM's programs too)
     t0 = time.perf_counter()
-    sol = sg.solve(pb, steps=STEPS)
+    sol, levels = path()
     t_solve = time.perf_counter() - t0
     t0 = time.perf_counter()
-    sg.solve(pb, steps=STEPS, wrt=names)
+    path(names)
     t_sens = time.perf_counter() - t0
     its = sum(sol.newton_iterations)
-    return {"case": kind, "size": size, "dofs": int(sol.model.n_dof), "increments": STEPS,
-            "newton_iterations": its, "solve_s": round(t_solve, 3),
-            "per_increment_s": round(t_solve / STEPS, 4), "per_iteration_s": round(t_solve / its, 4),
+    logs = [inc.newton for inc in sol.increments]
+    newton_s = [g.time_assembly + g.time_factorization + g.time_solve for g in logs]
+    return {"case": kind, "size": size, "dofs": int(sol.model.n_dof), "increments": steps,
+            "newton_iterations": its, "p_phase_increments": p_phase,
+            "p_phase_iterations": sum(sol.newton_iterations[:p_phase]),
+            "solve_s": round(t_solve, 3),
+            "per_increment_s": round(t_solve / steps, 4),
+            "p_phase_newton_per_increment_s": round(sum(newton_s[:p_phase]) / p_phase, 4),
+            "per_iteration_s": round(t_solve / its, 4),
             "ddm_s": round(t_sens - t_solve, 3),
+            "coarse_levels": " ".join(f"{lv['dofs']}:{sum(lv['newton_iterations'])}it:"
+                                      f"{lv['time_s']:.2f}s" for lv in levels[:-1]),
             "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)}
 
 
@@ -67,17 +102,18 @@ def main() -> None:
     rows = []
     for size in a.sizes.split(","):
         pair = {}
-        for kind in ("rigid", "two-body"):
+        for kind in ("rigid", "two-body-10", "two-body-20", "rigid-guided", "two-body-20-guided"):
             out = subprocess.run([sys.executable, __file__, "--one", kind, size], capture_output=True,
                                  text=True, check=True).stdout.strip().splitlines()[-1]
             pair[kind] = json.loads(out)
             rows.append(pair[kind])
             print(pair[kind], flush=True)
-        r = pair["two-body"]["per_increment_s"] / pair["rigid"]["per_increment_s"]
-        it = pair["two-body"]["per_iteration_s"] / pair["rigid"]["per_iteration_s"]
-        for kind in pair:
-            pair[kind]["two_body_over_rigid_per_increment"] = round(r, 2)
-            pair[kind]["two_body_over_rigid_per_iteration"] = round(it, 2)
+        for kind, row in pair.items():
+            rigid = pair["rigid-guided" if kind.endswith("guided") else "rigid"]
+            row["over_rigid_per_increment"] = round(row["per_increment_s"] / rigid["per_increment_s"], 2)
+            row["over_rigid_p_phase_per_increment"] = round(
+                row["p_phase_newton_per_increment_s"] / rigid["p_phase_newton_per_increment_s"], 2)
+            row["over_rigid_per_iteration"] = round(row["per_iteration_s"] / rigid["per_iteration_s"], 2)
     report(rows, HERE / "results" / "cylinders.csv")
 
 
