@@ -13,6 +13,7 @@ import pytest
 
 import signorini as sg
 from signorini.app.cli import main
+from signorini.app.commands.ironing import SENSITIVITIES
 from signorini.algorithms.newton import NewtonOptions
 from signorini.contact import mortar
 from signorini.design.finite_differences import finite_difference
@@ -24,13 +25,16 @@ STEPS = 15  # a slide of 0.75 over 12 increments: less than a block cell (1/12) 
 CELLS = 48
 SLIDE = {"s": 0.75}
 TIGHT = NewtonOptions(rtol=1e-11)
-NAMES = ["mu", "R", "E2", "s"]
+NAMES = ["mu", "R", "E2", "s"]  # checked against FD of the API's path (the command checks all six)
 
 
 @pytest.fixture(scope="module")
 def ironed():
+    """The ironing path with the DDM of every parameter the command reports: the
+    command run of test_ironing_cli is the same problem, so it reuses these
+    compiled programs (its cold run compiled its own: +50-80 s)."""
     pb = ironing_problem(SLIDE, cells=CELLS)
-    sol = sg.solve(pb, steps=STEPS, wrt=NAMES, options=TIGHT)
+    sol = sg.solve(pb, steps=STEPS, wrt=list(SENSITIVITIES), options=TIGHT)
     return pb, sol
 
 
@@ -124,28 +128,37 @@ def _read(out, name):
 SMALL = ["--cells", "24", "--steps", "12", "--set", "s=0.5", "-q"]
 
 
-def test_ironing_cli(tmp_path):
-    """A coarse command run: every file (one VTU per body and increment), the
+def test_ironing_cli(tmp_path, ironed):
+    """A command run of the fixture's path (mesh, slide, increments, rtol): every
+    file (one VTU per body and increment), the die force equal to the API's, the
     DDM of the die force against the command's own central differences, the
     partner changes and per-body entries in summary.json."""
-    small = SMALL
     out = tmp_path / "i"
-    assert main(["ironing", "--out", str(out)] + small) == 0
+    args = ["--cells", str(CELLS), "--steps", str(STEPS), "--set", f"s={SLIDE['s']}",
+            "--rtol", f"{TIGHT.rtol:g}", "-q"]
+    assert main(["ironing", "--out", str(out)] + args) == 0
+    last = f"{STEPS:04d}"
     for name in ("force.csv", "contact.csv", "summary.json", "force.png", "sensitivity.png",
-                 "ironing.pvd", "ironing_block_0012.vtu", "ironing_die_0012.vtu"):
+                 "ironing.pvd", f"ironing_block_{last}.vtu", f"ironing_die_{last}.vtu"):
         assert (out / name).is_file(), name
     s = json.loads((out / "summary.json").read_text())
     assert set(s["ddm_vs_fd_rel_diff"]) == {"mu", "E1", "E2", "R", "d", "s"}
     assert max(s["ddm_vs_fd_rel_diff"].values()) <= 1e-6, s["ddm_vs_fd_rel_diff"]
     assert s["partner_changes"] and s["partner_change_count"] > 0
     assert set(s["bodies"]) == {"block", "die"}
-    # the die's support force is the die force; the block's balances it
     F = _read(out, "force.csv")
+    # the command solves the API's problem: the same die force and DDM along the path
+    _, sol = ironed
+    api = [die_force(sol, i, SENSITIVITIES) for i in range(len(sol.increments))]
+    for k in ["F_N", "F_T"] + [f"dF_{c}_d{n}" for n in SENSITIVITIES for c in "NT"]:
+        ref = np.array([r[k] for r in api])
+        assert np.abs(F[k] - ref).max() <= 1e-9 * np.abs(ref).max(), k  # 1e-12 when written
+    # the die's support force is the die force; the block's balances it
     assert s["bodies"]["die"]["support_force"] == pytest.approx([F["F_T"][-1], -F["F_N"][-1]])
     assert np.allclose(s["bodies"]["block"]["support_force"], [-F["F_T"][-1], F["F_N"][-1]],
                        rtol=1e-8, atol=1e-10 * F["F_N"][-1])
     pvd = (out / "ironing.pvd").read_text()
-    assert pvd.count('part="1"') == 12 and "ironing_die_0001.vtu" in pvd
+    assert pvd.count('part="1"') == STEPS and "ironing_die_0001.vtu" in pvd
 
 
 @pytest.mark.slow  # 3 command runs; test_ironing_cli checks the command's own FD, test_ddm_equals_fd_... the API's
