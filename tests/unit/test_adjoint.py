@@ -69,16 +69,19 @@ def test_adjoint_equals_ddm_forging_and_memory_options():
     names = list(forging.TABLE1)
     kw = dict(steps=6, options=forging.options(), solver="superlu")  # bitwise repeatable solves
     d = gradient(pb, resp, names, method=sg.DDM(), **kw)
-    a = gradient(pb, resp, names, method=sg.Adjoint(), **kw)
-    c = gradient(pb, resp, names, method=sg.Adjoint(factors="store", checkpoint=4), **kw)
+    # the parameters and every nodal coordinate in one backward pass (one set of
+    # compiled VJPs for both memory options instead of a second set for "nodes")
+    a = gradient(pb, resp, names + ["nodes"], method=sg.Adjoint(), **kw)
+    c = gradient(pb, resp, names + ["nodes"], method=sg.Adjoint(factors="store", checkpoint=4), **kw)
     assert rel(a.as_array(names), d.as_array(names)) < 1e-10
     # the nodal shape gradient along a design velocity is that parameter's derivative
-    a_nodes = gradient(pb, resp, ["nodes"], method=sg.Adjoint(), **kw)["nodes"]
+    a_nodes = a["nodes"]
     shape = [f"phi{k}" for k in range(5)]
     along = [float(np.sum(a_nodes * pb.shape[n])) for n in shape]
     assert rel(along, d.as_array(shape)) < 1e-10  # max |difference| / max |dF/dphi_k|
     # replayed states and stored factors give the same numbers
     assert rel(c.as_array(names), a.as_array(names)) < 1e-12
+    assert rel(c["nodes"], a_nodes) < 1e-12
     assert a.memory["states_kept"] == 6 and c.memory["states_kept"] == 2  # increments 4 and 6
     assert c.memory["factors_kept"] == 6 and c.timing["factorizations"] == 0
     assert c.memory["factors_per_increment"] > 0
@@ -222,13 +225,14 @@ def test_transposed_solves_match_superlu():
 
 
 def test_optimisation_objective_with_adjoint_gradient():
-    """The optimisation interface takes either mode: same value and gradient."""
+    """The optimisation interface takes either mode: same value and gradient (the
+    Table 1 parameters on the 2 x 4 mesh: the DDM programs of test_cli_adjoint_next_to_ddm)."""
     from signorini.design.optimize import Objective
 
     pb = forging.forging_problem(mesh=(2, 4))
-    names = ["phi0", "phi2", "mu"]
+    names = list(forging.TABLE1)  # phi0..phi4, mu, sigma_y
     resp = lambda m: forging.objective(m, forging.lateral_nodes(pb))  # noqa: E731
-    x = np.array([0.72, 0.69, 0.25])
+    x = np.array([0.72, 0.7, 0.69, 0.7, 0.71, 0.25, 100.0])
     evs = [Objective(pb, names, resp, steps=4, options=forging.options(), method=method).evaluate(x)
            for method in (sg.DDM(), sg.Adjoint())]
     assert evs[1].F == pytest.approx(evs[0].F, rel=1e-13)  # two solves (MKL threads)
