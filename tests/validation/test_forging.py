@@ -87,8 +87,10 @@ def test_forging_ddm_equals_central_fd():
 
 
 def test_forging_command_volume_and_outputs(tmp_path):
+    """The command on the 4 x 8 mesh of test_forging_ddm_equals_central_fd (the same
+    compiled programs): the volume, the outputs and the sensitivity fields."""
     out = tmp_path / "forge"
-    assert main(["forging", "--out", str(out), "--mesh", "3x6", "--steps", "10", "--no-fd", "-q",
+    assert main(["forging", "--out", str(out), "--mesh", "4x8", "--steps", "10", "--no-fd", "-q",
                  "--set", "mu=0.3"]) == 0
     s = json.loads((out / "summary.json").read_text())
     # plastic flow is isochoric: only the elastic volume change J - 1 ~ -p / kappa remains
