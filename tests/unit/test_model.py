@@ -15,12 +15,13 @@ def _rel(a, b):
     return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
 
 
-def test_element_kernels_in_chunks_equal_one_vmap():
+def test_element_kernels_in_chunks_equal_one_vmap(monkeypatch):
     """Large meshes run the element kernels over chunks of cells (lax.map of
     vmaps, the last chunk padded): forced on a small forging (F-bar, J2
     history, axisymmetric, 200 cells in chunks of 16) the load path, its
     history and its shape sensitivities are those of one vmap."""
     from signorini.problems import forging
+    from signorini.model import kernels
 
     names = ["phi1", "E"]
     from signorini.algorithms.stepping import _MODELS
@@ -30,11 +31,20 @@ def test_element_kernels_in_chunks_equal_one_vmap():
     ref_m = model_for(ref_pb)
     ref = sg.solve(ref_pb, **kw)
     _MODELS.clear()  # the same problem would share ref_m: a second model
+    # its programs have ref_m's key (the chunk size is not part of it): from the kept
+    # programs on disk it would load ref_m's executables, one vmap, and never trace
+    # the chunks. Compiled here, and not kept
+    monkeypatch.setenv("SIGNORINI_PROGRAM_CACHE", "0")
     m = model_for(pb)
     assert m is not ref_m
     m.CELL_CHUNK, m.CHUNKED_FROM = 16, 0
     assert len(m.conn) % 16 != 0  # a padded last chunk
+    traced = []
+    over_cells = kernels.Model._over_cells
+    monkeypatch.setattr(kernels.Model, "_over_cells",
+                        lambda self, *a: traced.append(self is m) or over_cells(self, *a))
     got = sg.solve(pb, **kw)
+    assert any(traced)  # the chunked model's own programs ran
     p = as_jax(pb.params)
     # the kernels at one state: the same numbers up to the order of summation
     inc, st = ref.increments[-1], ref.increments[-2].state
