@@ -73,7 +73,8 @@ def test_taylor_remainder_of_frictional_load_path(friction, name):
     phi = pb.params[name]
     w0 = sol.increments[-1].w
     d = sol.w_sensitivity(name)
-    d_one_step = sg.solve(pb, steps=1, wrt=[name], options=TAYLOR).w_sensitivity(name)
+    # (both names, as the fixture: its compiled DDM programs)
+    d_one_step = sg.solve(pb, steps=1, wrt=["R", "mu"], options=TAYLOR).w_sensitivity(name)
 
     def run(h):
         s = sg.solve(pb.with_params(**{name: phi + h}), steps=STEPS, options=TAYLOR)
