@@ -157,13 +157,12 @@ def test_cylinders_adjoint_equals_ddm(cylinders):
             c = model.contact_fields(w, p, t, 0)
             return jnp.sum(c["area"] * (c["p_N"] ** 2 + c["p_T"] * c["p_N"]))
         return f
-    ga = sg.gradient(pb, response, wrt=names, steps=4, method=sg.Adjoint())
+    ga = sg.gradient(pb, response, wrt=names + ["nodes"], steps=4, method=sg.Adjoint())  # one pass
     gd = sg.gradient(pb, response, wrt=names, steps=4, method=sg.DDM())
     for n in names:
         assert ga[n] == pytest.approx(gd[n], rel=1e-10)
-    gn = sg.gradient(pb, response, wrt=["nodes"], steps=4, method=sg.Adjoint())
     for n in ("R1", "R2"):
-        assert np.sum(np.asarray(gn["nodes"]) * pb.shape[n]) == pytest.approx(gd[n], rel=1e-10)
+        assert np.sum(np.asarray(ga["nodes"]) * pb.shape[n]) == pytest.approx(gd[n], rel=1e-10)
 
 
 def test_cylinders_against_hertz():
@@ -323,14 +322,17 @@ def test_partner_distances_computed_once_per_increment(monkeypatch):
 
     pb = ironing_problem(cells=24, params={"s": 0.3})
     master = pb.mesh.edge_set(pb.contact[0].obstacle.master)
+    nc = np.unique(pb.mesh.edge_set(pb.contact[0].edges)).size
     calls = []
     real = mortar._projections
-    monkeypatch.setattr(mortar, "_projections",
-                        lambda seg, x, edges: calls.append(len(edges) == len(master)) or real(seg, x, edges))
+    # the projections of both segments of every slave node (nc of them) on the master
+    # surface (the candidates' search on the nominal mesh projects the nc - 1 slave
+    # segments, and only when the model is built, not when a worker has it already)
+    monkeypatch.setattr(mortar, "_projections", lambda seg, x, edges: calls.append(
+        len(edges) == len(master) and len(seg) == nc) or real(seg, x, edges))
     sol = sg.solve(pb, steps=4)
     assert not [w for w in sol.warnings if "candidate partners" in w], sol.warnings
-    # the candidates on the nominal mesh, then per increment both slave segments of each node, once
-    assert sum(calls) == 1 + 2 * len(sol.increments)
+    assert sum(calls) == 2 * len(sol.increments)  # once per increment
     surf = sol.model.surfaces[0]
     x = np.asarray(sol.reference()) + sol.displacement()
     d = mortar.partner_distances(x, surf.patches, master)
