@@ -8,6 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..fem.mesh import parts
 
 def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) interpolation matrix: piecewise linear on the Delaunay triangulation
@@ -85,8 +86,6 @@ def _bodywise_weights(mc, mf, Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) node interpolation body by body (:func:`signorini.fem.mesh.parts`,
     matched by name): a node of one body near another (two bodies in contact)
     takes values of its own body only. One body: :func:`_linear_weights`."""
-    from ..fem.mesh import parts  # noqa: PLC0415  (lazy: scipy.sparse.csgraph, coarse starts only)
-
     pc, pf = parts(mc), parts(mf)
     if len(pc) == 1 and len(pf) == 1:
         return _linear_weights(Xc, Xf)
