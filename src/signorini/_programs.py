@@ -159,7 +159,9 @@ class Program:
     Args:
         fn: the function (pure; what it closes over must be fixed by ``key``).
         name: its name within the owner (part of the disk key).
-        key: the owner's content digest (str), or None: memory only.
+        key: the owner's content digest (str), or None: memory only; or a function
+            returning either, read when a program is built (an owner whose settings
+            change what is traced keys them in at that time).
         static_argnums: as for ``jax.jit``.
     """
 
@@ -200,9 +202,10 @@ class Program:
     # ------------------------------------------------------------ disk cache
     def _path(self, sig) -> Path | None:
         d = programs_dir()
-        if self.key is None or d is None or _disabled():
+        key = self._key()
+        if key is None or d is None or _disabled():
             return None
-        text = "\n".join((str(FORMAT), self.key, self.name, repr(sig), code_version(), _platform()))
+        text = "\n".join((str(FORMAT), key, self.name, repr(sig), code_version(), _platform()))
         return d / (hashlib.blake2b(text.encode(), digest_size=20).hexdigest() + ".bin")
 
     def _build(self, args, sig):
@@ -230,8 +233,11 @@ class Program:
             self._save(path, c)
         return c
 
+    def _key(self) -> str | None:
+        return self.key() if callable(self.key) else self.key
+
     def _header(self) -> bytes:
-        return f"{FORMAT}|{self.name}|{self.key}|{code_version()}|{_platform()}\n".encode()
+        return f"{FORMAT}|{self.name}|{self._key()}|{code_version()}|{_platform()}\n".encode()
 
     def _load(self, path: Path):
         start = time.time()

@@ -31,13 +31,15 @@ def test_element_kernels_in_chunks_equal_one_vmap(monkeypatch):
     ref_m = model_for(ref_pb)
     ref = sg.solve(ref_pb, **kw)
     _MODELS.clear()  # the same problem would share ref_m: a second model
-    # its programs have ref_m's key (the chunk size is not part of it): from the kept
-    # programs on disk it would load ref_m's executables, one vmap, and never trace
-    # the chunks. Compiled here, and not kept
-    monkeypatch.setenv("SIGNORINI_PROGRAM_CACHE", "0")
     m = model_for(pb)
     assert m is not ref_m
+    key = m._program_key()
     m.CELL_CHUNK, m.CHUNKED_FROM = 16, 0
+    # the chunking is part of the programs' key on disk: with ref_m's key it would
+    # load ref_m's executables (one vmap) and never trace the chunks
+    assert m.key == ref_m.key and m._program_key() != key
+    # compiled here and not kept, so that its chunks are traced on every run
+    monkeypatch.setenv("SIGNORINI_PROGRAM_CACHE", "0")
     assert len(m.conn) % 16 != 0  # a padded last chunk
     traced = []
     over_cells = kernels.Model._over_cells

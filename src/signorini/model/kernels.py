@@ -208,7 +208,14 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         """``jax.jit(fn)`` kept between processes under this model's key and ``name``
         (:class:`signorini._programs.Program`): ``fn`` must be fixed by the model and
         ``name`` (a function of a caller's own needs a name of its own)."""
-        return Program(fn, name, self.key, static_argnums=static_argnums)
+        return Program(fn, name, self._program_key, static_argnums=static_argnums)
+
+    def _program_key(self) -> str | None:
+        """This model's key with the chunking of its cells as it is when a program is
+        traced (:meth:`_over_cells`): a model chunked otherwise traces other code."""
+        if self.key is None:
+            return None
+        return stable_digest((self.key, self.CELL_CHUNK, self.CHUNKED_FROM))
 
     # ----------------------------------------------------- layout delegation
     n_nodes = property(lambda self: self.layout.n_nodes)
