@@ -280,15 +280,6 @@ def _evaluate_with_backtracking(model, w, params, t, state_n, dw, weights, norm_
     return R, blocks
 
 
-#: backward error a Newton correction is solved to (linsolve.Factor.solve's ``tol``):
-#: the linear error it leaves is this fraction of the residual it corrects, so
-#: Newton's quadratic convergence and the converged point are unaffected; asking for
-#: round-off instead made PARDISO analyse the pattern again whenever refinement of a
-#: factor with perturbed pivots stopped just above it (1.2e-14 against 1e-14: 0.2 s at
-#: 62k DOFs). The sensitivity solves keep round-off (their own factors).
-CORRECTION_TOL = 1e-12
-
-
 def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool):
     """(factor, dw): the tangent assembled and factorised, K dw = -R solved and checked;
     a singular tangent fails the step (fatally at the first iteration)."""
@@ -303,7 +294,7 @@ def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool):
     steplog.time_factorization += time.perf_counter() - t0
     t0 = time.perf_counter()
     try:
-        dw = fac.solve(-Rf, tol=CORRECTION_TOL)
+        dw = fac.solve(-Rf)
     except SingularTangentError as e:
         raise StepFailure(str(e), fatal=first) from None
     lin = fac.relative_residual  # linsolve.Factor: every solver's factors are one

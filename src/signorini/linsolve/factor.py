@@ -128,21 +128,9 @@ class Factor:
                 break
         return eta
 
-    def solve(self, b: np.ndarray, transpose: bool = False, tol: float | None = None) -> np.ndarray:
-        """x with K x = b (``transpose``: K^T x = b); b (n,) or (n, k).
-
-        ``tol``: the backward error this solve must reach (default, and at least,
-        :attr:`refine_tol`): refinement stops there, and only above it is the
-        matrix factorised afresh (a new analysis, where the solver has one). A
-        Newton correction needs far less than round-off (its error is a fraction
-        of the residual it corrects); a sensitivity solve needs round-off."""
+    def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+        """x with K x = b (``transpose``: K^T x = b); b (n,) or (n, k)."""
         b = np.asarray(b, dtype=float)
-        if tol is not None and tol > self.refine_tol:
-            saved, self.refine_tol = self.refine_tol, tol
-            try:
-                return self.solve(b, transpose)
-            finally:
-                self.refine_tol = saved
         if transpose and not self._transposable:
             if self._transpose_factor is None:
                 raise InputError("this factorisation has no transposed solve (K^T x = b), which "
