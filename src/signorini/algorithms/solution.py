@@ -306,33 +306,29 @@ class Solution:
         inc = self._inc(i)
         w = to_device(inc.w)
         state, sdot = self.state_before(i) if with_state else (None, None)
-        # kept between processes only for the package's own responses, whose code
-        # the programs' key covers; the caller's key names the function (docstring)
-        own = key is not None and getattr(fn, "__module__", "").startswith("signorini.")
-        program = self.model.program if own else (lambda f, name: Program(f, name))
-        name = f"response:{key!r}:{with_state}"
-        # the programs of this response, built when first needed: its value alone, or
-        # its value and its JVPs in one program (one compilation where both are asked)
-        progs = self.model.cache.setdefault((key, with_state), {}) if key is not None else {}
-
-        def both(w, p, t, st, a, b, c):
-            tangents = jax.vmap(lambda a_, b_, c_: jax.jvp(
-                lambda w_, p_, s_: fn(w_, p_, t, *s_), (w, p, st), (a_, b_, c_))[1])(a, b, c)
-            return fn(w, p, t, *st), tangents
-
-        def get(kind):
-            if kind not in progs:
-                progs[kind] = program(fn, name) if kind == "value" else program(both, name + ":jvp")
-            return progs[kind]
-
+        cache = self.model.cache
+        if key is not None and (key, with_state) in cache:
+            val_fn, jvp_fn = cache[(key, with_state)]
+        else:
+            # kept between processes only for the package's own responses, whose code
+            # the programs' key covers; the caller's key names the function (docstring)
+            own = key is not None and getattr(fn, "__module__", "").startswith("signorini.")
+            program = self.model.program if own else (lambda f, name: Program(f, name))
+            name = f"response:{key!r}:{with_state}"
+            val_fn = program(fn, name)
+            jvp_fn = program(jax.vmap(lambda w, p, t, st, a, b, c: jax.jvp(
+                lambda w_, p_, s_: fn(w_, p_, t, *s_), (w, p, st), (a, b, c))[1],
+                (None, None, None, None, 0, 0, 0)), name + ":jvp")
+            if key is not None:
+                cache[(key, with_state)] = (val_fn, jvp_fn)
         extra = (state,) if with_state else ()
         t = np.float64(inc.t)  # one type for t whatever the caller stored: one compilation
+        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra))
         if not with_sensitivities or not self.names:
-            return jax.tree_util.tree_map(np.asarray, get("value")(w, self.jax_params, t, *extra)), {}
+            return val, {}
         e = unit_tangents(self.jax_params, self.names)
         wd = to_device(np.stack([inc.sens[n] for n in self.names]))
-        val, d = get("both")(w, self.jax_params, t, extra, wd, e, (sdot,) if with_state else ())
-        # in NumPy: no eager JAX op per name when indexing
-        val, d = (jax.tree_util.tree_map(np.asarray, x) for x in (val, d))
+        d = jvp_fn(w, self.jax_params, t, extra, wd, e, (sdot,) if with_state else ())
+        d = jax.tree_util.tree_map(np.asarray, d)  # index in NumPy: no eager JAX op per name
         return val, {n: jax.tree_util.tree_map(lambda v, k=k: v[k], d)
                      for k, n in enumerate(self.names)}
