@@ -232,3 +232,34 @@ def test_bad_cache_settings_warn_once_and_land_in_the_summary(cache, monkeypatch
     summary = write_summary_json(out, {"warnings": ["from the solve"]})
     assert summary["warnings"][0] == "from the solve" and len(summary["warnings"]) == 3
     assert any("SIGNORINI_CACHE_MAX_MB" in w for w in summary["warnings"])
+
+
+def test_contact_output_reuses_the_models_fields_program(monkeypatch):
+    """The contact output of a solution on a whole-mesh model takes its values from
+    the model's ``fields`` program (which the increment checks compiled) and builds
+    only the JVP of its sensitivities; a solution without sensitivities (a
+    finite-difference re-solve) builds nothing. The values are those of the
+    model's contact_fields compiled on its own."""
+    from signorini._jax import jax
+    from signorini.params import as_jax
+
+    pb = hertz.hertz_problem(n_fine=8, size=8)
+    sol = sg.solve(pb, wrt=["R"])
+    built = []
+    build = _programs.Program._build
+    monkeypatch.setattr(_programs.Program, "_build",
+                        lambda self, args, sig: built.append(self.name) or build(self, args, sig))
+    c = sol.contact()
+    assert [n for n in built if n.startswith("response:('contact'")] \
+        == ["response:('contact', 0):False:jvp"], built
+    built.clear()
+    plain = sg.solve(pb.with_params(R=pb.params["R"] * 1.001))
+    c_plain = plain.contact()
+    assert built == [] and "dp_N_dR" not in c_plain
+    inc = sol.increments[-1]
+    ref = jax.jit(lambda w, p, t: sol.model.contact_fields(w, p, t, 0))(inc.w, as_jax(pb.params), inc.t)
+    for k in ("gap", "p_N", "p_T"):
+        np.testing.assert_allclose(c[k], np.asarray(ref[k]), rtol=0,
+                                   atol=1e-13 * np.abs(np.asarray(ref[k])).max())
+    assert np.abs(c["dp_N_dR"]).max() > 0
+

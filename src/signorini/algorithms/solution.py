@@ -264,8 +264,14 @@ class Solution:
         else the contact kind's programs (JVP along the DDM sensitivities)."""
         m, inc = self.model, self._inc(i)
         if not m.by_kind:
+            # the values from the model's own program (the increment checks run it), only
+            # the JVP from a response program: one program compiled fewer
+            val = jax.tree_util.tree_map(np.asarray, m.compiled.fields(
+                to_device(inc.w), self.jax_params, float(inc.t), surface))
+            if not self.names:
+                return val, {}
             fn = lambda w, p, t: m.contact_fields(w, p, t, surface)  # noqa: E731
-            return self.response(fn, i, key=("contact", surface))
+            return val, self.evaluate(fn, i, True, ("contact", surface), False, value=val)[1]
         val = m.compiled.fields(inc.w, self.jax_params, inc.t, surface)
         if not self.names:
             return val, {}
@@ -301,8 +307,9 @@ class Solution:
         material, reactions with friction): the JVP carries D state_n / D phi too."""
         return self.evaluate(fn, i, True, key, with_state=True)
 
-    def evaluate(self, fn, i, with_sensitivities, key, with_state):
-        """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])."""
+    def evaluate(self, fn, i, with_sensitivities, key, with_state, value=None):
+        """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])
+        (``value``: fn's value, known to the caller: only the JVPs are computed)."""
         inc = self._inc(i)
         w = to_device(inc.w)
         state, sdot = self.state_before(i) if with_state else (None, None)
@@ -323,7 +330,8 @@ class Solution:
                 cache[(key, with_state)] = (val_fn, jvp_fn)
         extra = (state,) if with_state else ()
         t = np.float64(inc.t)  # one type for t whatever the caller stored: one compilation
-        val = jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra))
+        val = value if value is not None else \
+            jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra))
         if not with_sensitivities or not self.names:
             return val, {}
         e = unit_tangents(self.jax_params, self.names)
