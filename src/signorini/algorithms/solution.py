@@ -323,20 +323,27 @@ class Solution:
             program = self.model.program if own else (lambda f, name: Program(f, name))
             name = f"response:{key!r}:{with_state}"
             val_fn = program(fn, name)
-            jvp_fn = program(jax.vmap(lambda w, p, t, st, a, b, c: jax.jvp(
-                lambda w_, p_, s_: fn(w_, p_, t, *s_), (w, p, st), (a, b, c))[1],
-                (None, None, None, None, 0, 0, 0)), name + ":jvp")
+
+            def value_and_jvp(w, p, t, st, a, b, c):
+                # the value once, and its linear map along every direction: the value
+                # comes with the JVPs at no extra cost (no value program to compile)
+                val, lin = jax.linearize(lambda w_, p_, s_: fn(w_, p_, t, *s_), w, p, st)
+                return val, jax.vmap(lin)(a, b, c)
+
+            jvp_fn = program(value_and_jvp, name + ":jvp")
             if key is not None:
                 cache[(key, with_state)] = (val_fn, jvp_fn)
         extra = (state,) if with_state else ()
         t = np.float64(inc.t)  # one type for t whatever the caller stored: one compilation
-        val = value if value is not None else \
-            jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra))
         if not with_sensitivities or not self.names:
+            val = value if value is not None else \
+                jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra))
             return val, {}
         e = unit_tangents(self.jax_params, self.names)
         wd = to_device(np.stack([inc.sens[n] for n in self.names]))
-        d = jvp_fn(w, self.jax_params, t, extra, wd, e, (sdot,) if with_state else ())
-        d = jax.tree_util.tree_map(np.asarray, d)  # index in NumPy: no eager JAX op per name
+        v, d = jvp_fn(w, self.jax_params, t, extra, wd, e, (sdot,) if with_state else ())
+        # in NumPy: no eager JAX op per name when indexing
+        val = value if value is not None else jax.tree_util.tree_map(np.asarray, v)
+        d = jax.tree_util.tree_map(np.asarray, d)
         return val, {n: jax.tree_util.tree_map(lambda v, k=k: v[k], d)
                      for k, n in enumerate(self.names)}
