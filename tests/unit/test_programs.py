@@ -263,3 +263,27 @@ def test_contact_output_reuses_the_models_fields_program(monkeypatch):
                                    atol=1e-13 * np.abs(np.asarray(ref[k])).max())
     assert np.abs(c["dp_N_dR"]).max() > 0
 
+
+
+def test_frictionless_switch_fields_come_from_the_fields_program(monkeypatch):
+    """Without a stick branch or a yield ratio, the fields that locate switch points
+    (gap, p_N, no stick margin) are the contact fields: no switch_fields program is
+    built for a frictionless solve, and they equal that program's."""
+    from signorini.params import as_jax
+
+    built = []
+    build = _programs.Program._build
+    monkeypatch.setattr(_programs.Program, "_build",
+                        lambda self, args, sig: built.append(self.name) or build(self, args, sig))
+    stepping._MODELS.clear()
+    pb = hertz.hertz_problem(n_fine=8, size=8)
+    sol = sg.solve(pb, wrt=["R"])
+    assert "switch_fields" not in built and "fields" in built, built
+    m, inc = sol.model, sol.increments[-1]
+    p = as_jax(pb.params)
+    (got,), ratio = m.compiled.switch_fields(inc.w, p, inc.t)
+    (ref,), ref_ratio = m._switch_fields_whole(inc.w, p, inc.t, None)
+    assert ratio is None and ref_ratio is None
+    for k in ("gap", "p_N", "stick_margin"):
+        np.testing.assert_array_equal(np.asarray(got[k]), np.asarray(ref[k]))
+    assert np.all(np.isinf(got["stick_margin"])) and np.asarray(ref["p_N"]).max() > 0

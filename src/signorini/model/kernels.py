@@ -185,8 +185,9 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             status=program(self.contact_status, "status", static_argnums=4),
             fields=self._fields_eager,
             update=self._update_eager,
-            switch_fields=program(self.switch_fields, "switch_fields"),
+            switch_fields=self._switch_fields_eager,
             stiffness=self._element_stiffness_eager)
+        self._switch_fields_whole = program(self.switch_fields, "switch_fields")
         self.frames = program(self.contact_frames, "frames", static_argnums=4)
         self._reference = program(self._reference_impl, "reference")
         self.prescribed_at = program(self.prescribed_values, "prescribed")  # one program, not an op per Fixed
