@@ -263,16 +263,11 @@ class Solution:
         response program of the model on a mesh evaluated by whole-mesh programs,
         else the contact kind's programs (JVP along the DDM sensitivities)."""
         m, inc = self.model, self._inc(i)
-        if not m.by_kind:
-            # the values from the model's own program (the increment checks run it), only
-            # the JVP from a response program: one program compiled fewer
-            val = jax.tree_util.tree_map(np.asarray, m.compiled.fields(
-                to_device(inc.w), self.jax_params, float(inc.t), surface))
-            if not self.names:
-                return val, {}
+        if self.names and not m.by_kind:  # the value comes with the JVPs (evaluate)
             fn = lambda w, p, t: m.contact_fields(w, p, t, surface)  # noqa: E731
-            return val, self.evaluate(fn, i, True, ("contact", surface), False, value=val)[1]
-        val = m.compiled.fields(inc.w, self.jax_params, inc.t, surface)
+            return self.response(fn, i, key=("contact", surface))
+        # the model's own program (the increment checks run it): no response program
+        val = m.compiled.fields(inc.w, self.jax_params, float(inc.t), surface)
         if not self.names:
             return val, {}
         wd, e = self._directions(i)
@@ -307,9 +302,8 @@ class Solution:
         material, reactions with friction): the JVP carries D state_n / D phi too."""
         return self.evaluate(fn, i, True, key, with_state=True)
 
-    def evaluate(self, fn, i, with_sensitivities, key, with_state, value=None):
-        """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])
-        (``value``: fn's value, known to the caller: only the JVPs are computed)."""
+    def evaluate(self, fn, i, with_sensitivities, key, with_state):
+        """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])."""
         inc = self._inc(i)
         w = to_device(inc.w)
         state, sdot = self.state_before(i) if with_state else (None, None)
@@ -336,14 +330,11 @@ class Solution:
         extra = (state,) if with_state else ()
         t = np.float64(inc.t)  # one type for t whatever the caller stored: one compilation
         if not with_sensitivities or not self.names:
-            val = value if value is not None else \
-                jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra))
-            return val, {}
+            return jax.tree_util.tree_map(np.asarray, val_fn(w, self.jax_params, t, *extra)), {}
         e = unit_tangents(self.jax_params, self.names)
         wd = to_device(np.stack([inc.sens[n] for n in self.names]))
-        v, d = jvp_fn(w, self.jax_params, t, extra, wd, e, (sdot,) if with_state else ())
+        val, d = jvp_fn(w, self.jax_params, t, extra, wd, e, (sdot,) if with_state else ())
         # in NumPy: no eager JAX op per name when indexing
-        val = value if value is not None else jax.tree_util.tree_map(np.asarray, v)
-        d = jax.tree_util.tree_map(np.asarray, d)
+        val, d = (jax.tree_util.tree_map(np.asarray, x) for x in (val, d))
         return val, {n: jax.tree_util.tree_map(lambda v, k=k: v[k], d)
                      for k, n in enumerate(self.names)}
