@@ -4,6 +4,7 @@ coarse-to-fine start and guided increments give the solution from rest with
 fewer Newton iterations, and a failing coarse level is abandoned at once."""
 
 import sys
+from collections import OrderedDict
 
 import numpy as np
 import pytest
@@ -13,7 +14,9 @@ import signorini as sg
 from signorini.algorithms.coarse_to_fine import prolong, solve_coarse_to_fine
 from signorini.problems import hertz
 from signorini.problems.hertz_friction import hertz_friction_problem
+from signorini.algorithms import stepping
 from signorini.algorithms.stepping import model_for
+from signorini.model import Model
 
 TIGHT = sg.NewtonOptions(rtol=1e-11)
 
@@ -52,10 +55,12 @@ def test_coarse_to_fine_start_same_solution_fewer_iterations():
     assert np.array_equal(c1["p_N"] > 0, c2["p_N"] > 0)  # open nodes exactly zero in both
 
 
-def test_coarse_meshes_guide_every_increment_of_a_frictional_path():
+def test_coarse_meshes_guide_every_increment_of_a_frictional_path(monkeypatch):
     """The coarse meshes are solved along the whole path; every fine increment
     starts from its own last state plus the interpolated coarse increment. Only
     the start changes: the fine path is the one from rest."""
+    # every mesh by programs of its own, so that both coarse levels are solved
+    _fresh_models(monkeypatch, 10**9)
     fine = hertz_friction_problem(refine=1)
     o = sg.NewtonOptions(rtol=1e-10)
     guide, levels = hertz.coarse_start_for(
@@ -71,6 +76,34 @@ def test_coarse_meshes_guide_every_increment_of_a_frictional_path():
     assert max(later) <= 2 and sum(later) < sum(plain.newton_iterations[1:])
     for a, b in zip(started.increments, plain.increments):
         assert _rel(a.w, b.w) < 1e-9 and _rel(a.sens["R"], b.sens["R"]) < 1e-8
+
+
+def _fresh_models(monkeypatch, whole_mesh_up_to: int) -> None:
+    """Models built from here on with this threshold (none kept from other tests)."""
+    monkeypatch.setattr(Model, "WHOLE_MESH_UP_TO", whole_mesh_up_to)
+    monkeypatch.setattr(stepping, "_MODELS", OrderedDict())
+
+
+def test_a_fine_mesh_run_by_kind_is_guided_only_by_levels_run_by_kind(monkeypatch):
+    """A coarse level small enough for programs of its own (Model.WHOLE_MESH_UP_TO
+    cells or fewer) is not solved when the fine mesh runs by its kinds' programs:
+    in a new process it would load or compile them, for a few iterations saved;
+    every level is solved
+    when the fine mesh has programs of its own too."""
+    build = lambda r, n: hertz.hertz_problem(refine=r, n_fine=n)  # noqa: E731
+    sizes = {(r, n): build(r, n).mesh.n_cells for r, n in hertz.coarse_levels(1, 24)}
+    assert sorted(sizes) == [(0, 12), (0, 24)] and sizes[(0, 12)] < 1000 < sizes[(0, 24)]
+    _fresh_models(monkeypatch, 1000)
+    fine = hertz.hertz_problem(refine=1)
+    assert model_for(fine).by_kind
+    guide, levels = hertz.coarse_start_for(fine, build, 1, 24, steps=1, options=TIGHT,
+                                           solver="auto")
+    assert [lv["dofs"] for lv in levels] == [model_for(build(0, 24)).n_dof]
+    assert guide.model.n_dof == levels[0]["dofs"]
+    _fresh_models(monkeypatch, 10**9)
+    assert not model_for(fine).by_kind
+    _, levels = hertz.coarse_start_for(fine, build, 1, 24, steps=1, options=TIGHT, solver="auto")
+    assert [lv["dofs"] for lv in levels] == [model_for(build(*lv)).n_dof for lv in [(0, 12), (0, 24)]]
 
 
 def test_guide_covers_only_its_own_increments():

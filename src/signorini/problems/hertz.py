@@ -29,6 +29,7 @@ from ..materials import LinearElastic, NeoHooke
 from ..fem.mesh import graded_coordinates, rectangle
 from ..contact.obstacles import Circle
 from ..model.problem import Problem
+from ..model.kernels import Model
 from ..linsolve import check_size
 from .._jax import jnp
 from ..algorithms.coarse_to_fine import solve_coarse_to_fine
@@ -221,8 +222,14 @@ def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options
     :func:`coarse_levels`, solved coarse to fine along the whole load path, the
     finest of them a ``guide`` for ``solve(pb, start=...)``; (None, []) without
     a coarser mesh. A failing coarse level guides only over the increments it
-    converged (recorded in ``levels``)."""
+    converged (recorded in ``levels``). When the fine mesh runs by its kinds'
+    programs (``Model.by_kind``), only the levels that do too are solved."""
     coarse = [build(r, n) for r, n in coarse_levels(refine, n_fine, coarsest)]
+    if model_for(pb).by_kind:
+        # the fine mesh runs by its kinds' programs, which serve every mesh as large; a
+        # level small enough for programs of its own (Model.WHOLE_MESH_UP_TO) loads or
+        # compiles them in every process: more than the few iterations it saves the next
+        coarse = [c for c in coarse if c.mesh.n_cells > Model.WHOLE_MESH_UP_TO]
     if not coarse:
         return None, []
     try:
