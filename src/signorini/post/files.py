@@ -1,4 +1,4 @@
-"""Writing results: VTU and PVD time series for ParaView (meshio), CSV tables,
+"""Writing results: VTU and PVD time series for ParaView (:mod:`.vtu`), CSV tables,
 JSON summaries. Meshes are read by :mod:`signorini.fem.meshfile`."""
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from . import helper
 from .atomic import atomic
 from ..errors import InputError
 from ..fem.mesh import parts
+from .vtu import write_unstructured
 
 
 def _vec3(a):
@@ -133,12 +134,10 @@ def _write_part(path: Path, fields: tuple, parts_: list, body: str | None) -> No
 
 
 def _write_vtu_arrays(path, points, cell_kind: str, cells, point_data: dict, cell_data: dict) -> None:
-    """Write a VTU file (atomically) of one cell block with its point and cell data."""
-    import meshio  # noqa: PLC0415  (lazy: heavy; the output helper has it loaded already)
-
-    mesh = meshio.Mesh(points, [(cell_kind, cells)], point_data=point_data, cell_data=cell_data)
+    """Write a VTU file (atomically) of one cell block with its point and cell data
+    (:func:`signorini.post.vtu.write_unstructured`)."""
     with atomic(path) as tmp:
-        mesh.write(tmp)
+        write_unstructured(tmp, points, cell_kind, cells, point_data, cell_data)
 
 
 def write_pvd(solution, path, increments=None) -> Path:

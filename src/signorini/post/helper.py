@@ -2,8 +2,8 @@
 writes its VTU files while the command goes on (``python -m signorini.post.helper``).
 
 The ``signorini`` command starts it first thing (:func:`start`), before it
-imports the library and JAX: the helper imports matplotlib and meshio on the
-other core meanwhile. An output function hands it a job with :func:`run` —
+imports the library and JAX: the helper imports matplotlib on the other core
+meanwhile. An output function hands it a job with :func:`run` —
 the name of a function of :data:`JOBS` and plain arguments (NumPy arrays,
 numbers, strings) — and returns at once; :func:`finish` waits for the files
 (``summary.json`` is written after it). A job the helper could not do, or all
@@ -60,7 +60,6 @@ def preload() -> None:
     """Import what the jobs need (the helper does it while the command starts)."""
     from matplotlib import collections, figure  # noqa: F401, PLC0415  (lazy: heavy)
     from matplotlib.backends import backend_agg  # noqa: F401, PLC0415  (lazy: heavy)
-    import meshio  # noqa: F401, PLC0415  (lazy: heavy)
 
     for kind in JOBS:
         _function(kind)
