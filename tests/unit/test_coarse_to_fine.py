@@ -40,6 +40,26 @@ def test_prolongation_is_built_once_per_pair_of_meshes():
     assert abs(P.matrix - Prolongation(cm, fm).matrix).max() == 0.0
 
 
+def test_a_prolongation_prepared_on_its_thread_is_the_one_built_here():
+    """Prolongation.prepare builds it on a thread of its own (while a coarse level
+    solves); between() waits for it and keeps it; an error of the build is raised
+    by between(), in the caller's thread."""
+    from signorini.algorithms.coarse_to_fine import Prolongation
+
+    cm = model_for(hertz_friction_problem(refine=0, n_fine=10))
+    fm = model_for(hertz_friction_problem(refine=0, n_fine=20))
+    fm.cache.pop(("prolongation", id(cm)), None)
+    Prolongation.prepare(cm, fm)
+    P = Prolongation.between(cm, fm)
+    assert Prolongation.between(cm, fm) is P
+    assert abs(P.matrix - Prolongation(cm, fm).matrix).max() == 0.0
+    other = model_for(hertz.hertz_problem(n_fine=10))  # another contact surface: an error
+    other.cache.pop(("prolongation", id(cm)), None)
+    Prolongation.prepare(cm, other)
+    with pytest.raises(sg.InputError, match="same contact"):
+        Prolongation.between(cm, other)
+
+
 def test_coarse_to_fine_start_same_solution_fewer_iterations():
     fine = hertz.hertz_problem(refine=1)
     plain = sg.solve(fine, options=TIGHT, wrt=["R"])

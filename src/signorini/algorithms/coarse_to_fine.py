@@ -88,6 +88,9 @@ def solve_coarse_to_fine(problems: Sequence[Problem], *, steps: int = 1, wrt=(),
     levels, sol, label = [], None, solve_kwargs.pop("label", None)
     options = solve_kwargs.pop("options", None) or NewtonOptions()
     abandoned = False
+    models = [model_for(pb) for pb in problems]
+    for coarse, fine in zip(models, models[1:]):  # built while the coarser levels solve
+        Prolongation.prepare(coarse, fine)
     for k, pb in enumerate(problems):
         last = k == len(problems) - 1 and whole_path
         if abandoned and not last:

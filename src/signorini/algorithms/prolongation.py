@@ -4,11 +4,17 @@ surface for the contact multipliers. Used by the coarse-to-fine start."""
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
+
 import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
 from ..fem.mesh import parts
+
+#: the thread that builds prolongations ahead of their use (Prolongation.prepare)
+_BUILDER: list = []
+
 
 def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) interpolation matrix: piecewise linear on the Delaunay triangulation
@@ -148,12 +154,26 @@ class Prolongation:
         """The prolongation of these two models, built once and kept by the fine
         model: it depends only on their meshes, not on parameter values, and
         rebuilt in every solve it would be a large share of a coarse-to-fine solve
-        (docs/theory.md §10.3)."""
+        (docs/theory.md §10.3). One being built (:meth:`prepare`) is waited for."""
         key = ("prolongation", id(coarse_model))
         kept = fine_model.cache.get(key)
+        if isinstance(kept, Future):
+            kept = fine_model.cache[key] = kept.result()
         if kept is None or kept.coarse_model is not coarse_model:
             kept = fine_model.cache[key] = cls(coarse_model, fine_model)
         return kept
+
+    @classmethod
+    def prepare(cls, coarse_model, fine_model) -> None:
+        """Start building :meth:`between` on a thread of its own, while the coarse
+        model is solved: its triangulation and point location run outside Python's
+        lock (and the first one imports scipy.spatial meanwhile)."""
+        key = ("prolongation", id(coarse_model))
+        kept = fine_model.cache.get(key)
+        if kept is None or (not isinstance(kept, Future) and kept.coarse_model is not coarse_model):
+            if not _BUILDER:
+                _BUILDER.append(ThreadPoolExecutor(1, thread_name_prefix="signorini-prolongation"))
+            fine_model.cache[key] = _BUILDER[0].submit(cls, coarse_model, fine_model)
 
     def __call__(self, w_coarse) -> np.ndarray:
         """(fine n_dof,) interpolation of coarse unknowns (coarse n_dof,)."""

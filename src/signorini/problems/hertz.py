@@ -33,6 +33,7 @@ from ..model.kernels import Model
 from ..linsolve import check_size
 from .._jax import jnp
 from ..algorithms.coarse_to_fine import solve_coarse_to_fine
+from ..algorithms.prolongation import Prolongation
 from ..algorithms.stepping import model_for
 
 log = logging.getLogger("signorini")
@@ -232,6 +233,7 @@ def coarse_start_for(pb, build, refine: int, n_fine: int, *, steps: int, options
         coarse = [c for c in coarse if c.mesh.n_cells > Model.WHOLE_MESH_UP_TO]
     if not coarse:
         return None, []
+    Prolongation.prepare(model_for(coarse[-1]), model_for(pb))  # built while the levels solve
     try:
         return solve_coarse_to_fine(coarse, steps=steps, options=options, solver=solver,
                                     whole_path=False)
