@@ -34,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..errors import InputError, SolverError
 from .base import LinearSolver
@@ -134,6 +133,7 @@ class AMGKrylov(LinearSolver):
     # ------------------------------------------------------------------ parts
     def _preconditioner(self, K, symmetric: bool):
         import pyamg  # noqa: PLC0415  (lazy: loaded only by runs that use this solver)
+        import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above: 77 ms with scipy.linalg)
 
         st = self.structure
         n_u, n = st.n_u, K.shape[0]
@@ -184,6 +184,7 @@ class AMGKrylov(LinearSolver):
 
     def _krylov(self, K, apply, b):
         from pyamg.krylov import fgmres  # noqa: PLC0415  (lazy, as above)
+        import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
 
         b = np.asarray(b, dtype=float)
         if b.ndim == 2:

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import logging
 
-import scipy.sparse.linalg as spla
-
 from ..errors import SingularTangentError
 
 log = logging.getLogger("signorini")
@@ -26,6 +24,9 @@ class SuperLU(LinearSolver):
     name = "superlu"
 
     def factorize(self, K, symmetric=False):
+        # scipy.sparse.linalg and the scipy.linalg it loads take 77 ms to import, which
+        # a run by PARDISO need not wait for
+        import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy: only where SuperLU runs)
         A = K.tocsc()
         try:
             if symmetric:
