@@ -193,3 +193,35 @@ def test_read_gmsh_3d_errors(tmp_path):
                 ).write(tmp_path / "wedge.msh", file_format="gmsh22", binary=False)
     with pytest.raises(sg.InputError, match=r"unsupported cell types \['wedge'\]"):
         read_mesh(tmp_path / "wedge.msh")
+
+
+def test_connected_parts_are_scipys_connected_components():
+    """The bodies of a mesh (signorini.fem.mesh.parts) come from our own connected
+    components: the same partition as scipy.sparse.csgraph's on random cell sets
+    (several parts, isolated nodes, cells of 4 and 8 nodes), and boundary edges
+    are those in exactly one cell."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from signorini.fem.mesh import _components
+
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        n, k = int(rng.integers(2, 80)), int(rng.choice([4, 8]))
+        cells = rng.integers(0, n, size=(int(rng.integers(1, 25)), k))
+        ours = _components(cells, n)
+        g = sp.coo_matrix((np.ones(cells.size * k), (np.repeat(cells, k, axis=1).ravel(),
+                                                      np.tile(cells, (1, k)).ravel())), shape=(n, n))
+        count, ref = connected_components(g, directed=False)
+        assert len(np.unique(ours)) == count
+        pairs = set(zip(ours.tolist(), ref.tolist()))
+        assert len(pairs) == count  # one of ours per one of theirs
+        assert np.all(ours <= np.arange(n)) and np.all(ours[ours] == ours)  # labelled by a member
+    m = sg.rectangle(np.linspace(0, 1, 5), np.linspace(0, 2, 4))
+    e = m.boundary_edges()
+    assert len(e) == 2 * (4 + 3)
+    count = {}
+    for c in m.cells:
+        for a, b in zip(c, np.roll(c, -1)):
+            count[frozenset((a, b))] = count.get(frozenset((a, b)), 0) + 1
+    assert {frozenset(x) for x in e.tolist()} == {s for s, v in count.items() if v == 1}
