@@ -288,12 +288,13 @@ class Solution:
                                              key=("stress-history",))
             return self.response(lambda w, p, t: m.stresses(w, p), i, key=("stress",))
         state, sdot = self.state_before(i) if m.n_state else (None, None)
-        ue, Xe, mp, he = m._cell_arrays(inc.w, self.jax_params, state)
-        (val,) = m.cells("stress", (0,), (ue, Xe, he), mp)
         if not self.names:
+            ue, Xe, mp, he = m._cell_arrays(inc.w, self.jax_params, state)
+            (val,) = m.cells("stress", (0,), (ue, Xe, he), mp)
             return val, {}
         wd, e = self._directions(i)
-        (d,) = m.element_jvp("stress", (0,), inc.w, self.jax_params, state, wd, e, sdot)
+        (val,), (d,) = m.element_value_jvp("stress", (0,), inc.w, self.jax_params, state, wd, e,
+                                           sdot)
         return val, {n: d[k] for k, n in enumerate(self.names)}
 
     def history_response(self, fn: Callable, i: int = -1, key=None):

@@ -107,9 +107,10 @@ class Chunked:
         over = jax.vmap(one, (0, None))  # every item of a chunk
         if mode == "primal":
             fn = over
-        elif mode == "jvp":
+        elif mode in ("jvp", "value_jvp"):
             # tangents of the arguments in ``mask`` only (the items', then the shared
-            # values'; symbolic zeros elsewhere), batched over their leading axis
+            # values'; symbolic zeros elsewhere), batched over their leading axis;
+            # value_jvp: with the outputs themselves, computed once (jax.linearize)
             idx = [i for i, m in enumerate(mask) if m]
 
             def fn(items, shared, dots):
@@ -121,7 +122,11 @@ class Chunked:
                         a[i] = x
                     return over(tuple(a[:-1]), a[-1])
 
-                return jax.vmap(lambda d: jax.jvp(sub, tuple(args[i] for i in idx), d)[1])(dots)
+                primals = tuple(args[i] for i in idx)
+                if mode == "jvp":
+                    return jax.vmap(lambda d: jax.jvp(sub, primals, d)[1])(dots)
+                value, linear = jax.linearize(sub, *primals)
+                return value, jax.vmap(lambda d: linear(*d))(dots)
         else:  # vjp
             def fn(items, shared, cot):
                 return jax.vjp(over, items, shared)[1](cot)
@@ -204,6 +209,22 @@ class Chunked:
         args = lambda c, dc: (c, shared, tuple(list(dc) + extra))
         res = self._done(self._run(_count(items), prog, _caller(prog, args), items, item_dots))
         return _concat([tree_map(lambda a, v=v: np.asarray(a)[:, :v], r) for v, r in res], 1)
+
+    def value_jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
+        """The outputs ``outs`` (a tuple of (n, ...) arrays) and their derivatives
+        along ``dots`` (as :meth:`jvp`; at least one not None) from one program: the
+        outputs are computed once, not once by a value program and again inside
+        the JVP's."""
+        mask = tuple(d is not None for d in dots)
+        prog = self._program("value_jvp", name, outs, mask)
+        shared, dots = jax.device_put(shared), dots[:-1] + (jax.device_put(dots[-1]),)
+        item_dots = tuple(d for d in dots[:-1] if d is not None)
+        extra = [dots[-1]] if dots[-1] is not None else []
+        args = lambda c, dc: (c, shared, tuple(list(dc) + extra))
+        res = self._done(self._run(_count(items), prog, _caller(prog, args), items, item_dots))
+        values = _concat([tree_map(lambda a, v=v: np.asarray(a)[:v], r[0]) for v, r in res], 0)
+        derivatives = _concat([tree_map(lambda a, v=v: np.asarray(a)[:, :v], r[1]) for v, r in res], 1)
+        return values, derivatives
 
     def vjp(self, name: str, outs: tuple, items: tuple, shared, cot: tuple):
         """Cotangents (of ``items`` (per item), of ``shared`` (summed over the items))

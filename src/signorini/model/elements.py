@@ -94,6 +94,16 @@ class ModelElements:
         displacements' whenever w_dot is given, the coordinates' when the model has
         shape parameters, the material values' always, the history's when the
         material has one (zero when the state's sensitivity is not given)."""
+        return self.cells.jvp(name, outs, *self._jvp_arrays(w, params, state_n, w_dot, e, state_dot_n))
+
+    def element_value_jvp(self, name: str, outs: tuple, w, params, state_n, w_dot, e, state_dot_n):
+        """(the element outputs ``outs``, their JVP as :meth:`element_jvp`) from one
+        program of the element kind (the outputs computed once)."""
+        return self.cells.value_jvp(name, outs, *self._jvp_arrays(w, params, state_n, w_dot, e,
+                                                                   state_dot_n))
+
+    def _jvp_arrays(self, w, params, state_n, w_dot, e, state_dot_n):
+        """(items, shared, tangents) of the cells for the kind's JVP programs."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
         dX, dmp = self._parameter_jvp(params, e)
         k = len(next(iter(e.values())))
@@ -105,7 +115,7 @@ class ModelElements:
             sd = None if state_dot_n is None else state_dot_n[2]
             dh = np.zeros((k,) + he.shape) if sd is None else np.asarray(sd)
         dmp = {key: np.asarray(v) for key, v in dmp.items()}
-        return self.cells.jvp(name, outs, (ue, Xe, he), mp, (du, dXe, dh, dmp))
+        return (ue, Xe, he), mp, (du, dXe, dh, dmp)
 
     def element_vjp(self, name: str, outs: tuple, w, params, state_n, cot):
         """Cotangents of (w (n_dof,), params (pytree like ``params``), Gauss-point
