@@ -35,7 +35,10 @@ compilation cache and signorini's kept programs, see ``signorini/_jax.py`` and
 
 ``--signorini`` runs another installation or checkout (e.g. a script running
 ``PYTHONPATH=OLD/src python3 -m signorini.app.cli "$@"``) for before/after tables;
-``--commit`` names its commit in the CSV.
+``--commit`` names its commit in the CSV. ``--against`` (with ``--against-commit``)
+measures a second one in the same benchmark, alternating: run k of each, one
+after the other, each with caches of its own; the machine's speed drifts by
+10-20 % within an hour here, and alternating runs see the same drift.
 
 Other caches are not controlled: Python's bytecode and the OS's file cache are
 warm after the first run of the benchmark.
@@ -223,28 +226,36 @@ def run_once(exe: str, argv: list[str], work: Path, cache: Path, timeout: float 
 
 # --------------------------------------------------------------------------- a command
 
-def measure(name: str, argv: list[str], exe: str, runs: int, caches, timeout, log) -> list[dict]:
-    """Every timed run of one command, in both cache states."""
+def measure(name: str, argv: list[str], exes: list[tuple[str, str]], runs: int, caches, timeout,
+            log) -> list[dict]:
+    """Every timed run of one command, in both cache states; with several
+    executables ``(exe, commit)``, run k of each one after the other (alternating,
+    so that a change of the machine's speed during the benchmark hits all alike),
+    each with caches of its own."""
     rows = []
     with tempfile.TemporaryDirectory(prefix=f"bench_cli_{name}_") as tmp:
         tmp = Path(tmp)
         for state in caches:
+            shared = {}
             if state == "filled":
-                shared = tmp / "filled_cache"
-                w = run_once(exe, argv, tmp / "warmup", shared, timeout)
-                log(f"{name:17s} filled  warm-up  {w['wall_s']:8.2f} s  (untimed; exit {w['exit_code']}, "
-                    f"cache {w['cache_MB']:.1f} MB)")
+                for j, (exe, code) in enumerate(exes):
+                    shared[j] = tmp / f"filled_cache_{j}"
+                    w = run_once(exe, argv, tmp / "warmup", shared[j], timeout)
+                    log(f"{name:17s} filled  warm-up  {w['wall_s']:8.2f} s  (untimed; {code}; exit "
+                        f"{w['exit_code']}, cache {w['cache_MB']:.1f} MB)")
             for k in range(runs):
-                work = tmp / f"{state}_{k}"
-                cache = tmp / f"empty_cache_{k}" if state == "empty" else shared
-                r = run_once(exe, argv, work, cache, timeout)
-                rows.append({"command": name, "command_line": shown(argv), "cache": state, "run": k + 1,
-                             **r})
-                log(f"{name:17s} {state:7s} run {k + 1}/{runs} {r['wall_s']:8.2f} s  exit {r['exit_code']}  "
-                    f"peak RSS {r['peak_rss_MB']:.0f} MB" + (f"  {r['note']}" if r["note"] else ""))
-                shutil.rmtree(work, ignore_errors=True)  # disk: a forging output is ~10s of MB
-                if state == "empty":
-                    shutil.rmtree(cache, ignore_errors=True)
+                for j, (exe, code) in enumerate(exes):
+                    work = tmp / f"{state}_{k}_{j}"
+                    cache = tmp / f"empty_cache_{k}_{j}" if state == "empty" else shared[j]
+                    r = run_once(exe, argv, work, cache, timeout)
+                    rows.append({"command": name, "command_line": shown(argv), "cache": state,
+                                 "run": k + 1, "commit": code, "executable": exe, **r})
+                    log(f"{name:17s} {state:7s} run {k + 1}/{runs} {r['wall_s']:8.2f} s  exit "
+                        f"{r['exit_code']}  peak RSS {r['peak_rss_MB']:.0f} MB  ({code})"
+                        + (f"  {r['note']}" if r["note"] else ""))
+                    shutil.rmtree(work, ignore_errors=True)  # disk: a forging output is ~10s of MB
+                    if state == "empty":
+                        shutil.rmtree(cache, ignore_errors=True)
     return rows
 
 
@@ -267,7 +278,8 @@ def summarise(rows: list[dict], meta: dict) -> dict:
     out["dofs"] = dofs[0] if len(dofs) == 1 else ";".join(map(str, dofs))
     notes = list(dict.fromkeys(r["note"] for r in rows if r["note"]))
     out["note"] = " | ".join(notes)
-    return {**out, **meta}
+    return {**meta, **out, "commit": first.get("commit", meta.get("commit")),
+            "executable": first.get("executable", meta.get("executable"))}
 
 
 # --------------------------------------------------------------------------- output
@@ -313,12 +325,13 @@ def markdown(rows: list[dict]) -> str:
         if not isinstance(v, float):
             return "" if v is None else str(v)
         return f"{v:.3g}" if abs(v) < 1 else f"{v:.2f}"
-    head = ["command", "cache", "runs", "median s", "min s", "max s"] + \
+    head = ["command", "code", "cache", "runs", "median s", "min s", "max s"] + \
         [p[len("median_"):] + " (median)" for p in parts] + ["peak RSS MB", "DOFs"]
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for r in rows:
         runs = f"{r['runs']}" + (f" ({r['failed']} failed)" if r["failed"] else "")
-        cells = [f"`{r['command_line']}`", r["cache"], runs, f(r["median_s"]), f(r["min_s"]),
+        cells = [f"`{r['command_line']}`", str(r.get("commit", "")), r["cache"], runs,
+                 f(r["median_s"]), f(r["min_s"]),
                  f(r["max_s"])] + [f(r.get(p, "")) for p in parts] + \
             [f"{r['peak_rss_MB']:.0f}" if r["peak_rss_MB"] != "" else "", str(r["dofs"])]
         lines.append("| " + " | ".join(cells) + " |")
@@ -343,6 +356,10 @@ def main():
     ap.add_argument("--commit", default=None,
                     help="the commit of the code --signorini runs, for the CSV (default: this "
                          "checkout's HEAD, +dirty with uncommitted changes in src/)")
+    ap.add_argument("--against", default=None,
+                    help="a second executable (e.g. another checkout's, as for --signorini), run "
+                         "alternately with the first: run k of each one after the other")
+    ap.add_argument("--against-commit", default="against", help="the commit --against runs")
     args = ap.parse_args()
     if args.quick:
         args.runs, args.commands = 1, "hertz"
@@ -368,10 +385,15 @@ def main():
                             "failed": 0, "median_s": "", "min_s": "", "max_s": "", "peak_rss_MB": "",
                             "dofs": "", "note": argv, **meta})
             continue
-        runs = measure(name, argv, args.signorini, args.runs, caches, args.timeout or None, log)
-        all_runs += [{**r, **meta} for r in runs]
+        exes = [(args.signorini, meta["commit"])]
+        if args.against:
+            exes.append((args.against, args.against_commit))
+        runs = measure(name, argv, exes, args.runs, caches, args.timeout or None, log)
+        all_runs += [{**meta, **r} for r in runs]
         for state in caches:
-            summary.append(summarise([r for r in runs if r["cache"] == state], meta))
+            for _, code in exes:
+                summary.append(summarise([r for r in runs if r["cache"] == state
+                                          and r["commit"] == code], meta))
     print()
     print(f"signorini {meta['signorini']} at {meta['commit']}, {meta['date']}, {meta['cpu_count']} CPUs, "
           f"Python {meta['python']}, JAX {meta['jax']}; {args.runs} run(s) each, wall clock spawn -> exit")
