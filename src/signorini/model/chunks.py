@@ -198,33 +198,31 @@ class Chunked:
         """Derivatives of the outputs ``outs`` along ``dots`` (one per item argument,
         then one for ``shared``: arrays (k, n, ...) / pytree of (k,) arrays, or None:
         zero), a tuple of (k, n, ...) arrays; None if every tangent is None."""
-        mask = tuple(d is not None for d in dots)
-        if not any(mask):
+        if all(d is None for d in dots):
             return None
-        prog = self._program("jvp", name, outs, mask)
-        shared, dots = jax.device_put(shared), dots[:-1] + (jax.device_put(dots[-1]),)
-        item_dots = tuple(d for d in dots[:-1] if d is not None)
-        shared_dot = dots[-1]
-        extra = [shared_dot] if shared_dot is not None else []
-        args = lambda c, dc: (c, shared, tuple(list(dc) + extra))
-        res = self._done(self._run(_count(items), prog, _caller(prog, args), items, item_dots))
-        return _concat([tree_map(lambda a, v=v: np.asarray(a)[:, :v], r) for v, r in res], 1)
+        return _concat([tree_map(lambda a, v=v: np.asarray(a)[:, :v], r)
+                        for v, r in self._run_jvp("jvp", name, outs, items, shared, dots)], 1)
 
     def value_jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
         """The outputs ``outs`` (a tuple of (n, ...) arrays) and their derivatives
         along ``dots`` (as :meth:`jvp`; at least one not None) from one program: the
         outputs are computed once, not once by a value program and again inside
         the JVP's."""
-        mask = tuple(d is not None for d in dots)
-        prog = self._program("value_jvp", name, outs, mask)
-        shared, dots = jax.device_put(shared), dots[:-1] + (jax.device_put(dots[-1]),)
-        item_dots = tuple(d for d in dots[:-1] if d is not None)
-        extra = [dots[-1]] if dots[-1] is not None else []
-        args = lambda c, dc: (c, shared, tuple(list(dc) + extra))
-        res = self._done(self._run(_count(items), prog, _caller(prog, args), items, item_dots))
+        res = self._run_jvp("value_jvp", name, outs, items, shared, dots)
         values = _concat([tree_map(lambda a, v=v: np.asarray(a)[:v], r[0]) for v, r in res], 0)
         derivatives = _concat([tree_map(lambda a, v=v: np.asarray(a)[:, :v], r[1]) for v, r in res], 1)
         return values, derivatives
+
+    def _run_jvp(self, mode: str, name: str, outs: tuple, items: tuple, shared, dots: tuple):
+        """[(valid, outputs)] of the chunks of program ``mode`` (jvp or value_jvp)
+        along ``dots`` (the items' tangents cut into chunks, the shared ones whole)."""
+        mask = tuple(d is not None for d in dots)
+        prog = self._program(mode, name, outs, mask)
+        shared, dots = jax.device_put(shared), dots[:-1] + (jax.device_put(dots[-1]),)
+        item_dots = tuple(d for d in dots[:-1] if d is not None)
+        extra = [dots[-1]] if dots[-1] is not None else []
+        args = lambda c, dc: (c, shared, tuple(list(dc) + extra))  # noqa: E731
+        return self._done(self._run(_count(items), prog, _caller(prog, args), items, item_dots))
 
     def vjp(self, name: str, outs: tuple, items: tuple, shared, cot: tuple):
         """Cotangents (of ``items`` (per item), of ``shared`` (summed over the items))
