@@ -53,3 +53,53 @@ def test_amg_errors_are_named():
         lin.factorize(sp.identity(4, format="csr"))
     with pytest.raises(SolverError, match="did not reach the relative residual .* use a direct solver"):
         sg.solve(hertz3d(block(n=3)), solver=AMGKrylov(restart=2, max_iterations=2))
+
+
+def test_newton_corrections_are_solved_inexactly_to_the_same_solution(monkeypatch):
+    """With an iterative solver Newton's corrections stop at Eisenstat and Walker's
+    forcing tolerance (about 1e-3 at first, not 1e-11): fewer Krylov iterations,
+    the same converged solution and sensitivities (docs/theory.md §12.7)."""
+    from signorini.algorithms import newton
+    pb = hertz3d(block(n=5))
+    loose = AMGKrylov()
+    a = sg.solve(pb, wrt=["R"], solver=loose)
+    monkeypatch.setattr(newton, "FORCING_MAX", 0.0)  # every correction to the solver's 1e-11
+    tight = AMGKrylov()
+    b = sg.solve(pb, wrt=["R"], solver=tight)
+    same(a.contact(), b.contact(), ["p_N", "dp_N_dR"], tol=1e-9)
+    n_newton = a.newton_iterations[0]
+    # the first correction at 1e-3 takes a fraction of the tight solve's iterations
+    assert loose.iterations[0] < 0.5 * tight.iterations[0]
+    assert sum(loose.iterations[:n_newton]) < 0.6 * sum(tight.iterations[:b.newton_iterations[0]])
+
+
+def test_forcing_terms():
+    """Eisenstat-Walker: the loosest tolerance first, then (||R_k|| / ||R_k-1||)^2,
+    safeguarded, and never tighter than the final residual needs."""
+    from signorini.algorithms.newton import FORCING_FLOOR, FORCING_MAX, NewtonOptions, _forcing
+    opt = NewtonOptions()
+    assert _forcing(1.0, [1.0], 1.0, None, opt) == FORCING_MAX
+    # quadratic convergence: 0.9 (1e-6 / 1e-3)^2 = 9e-7
+    assert _forcing(1e-6, [1e-3, 1e-6], 1.0, 1e-3, opt) == pytest.approx(9e-7)
+    # a slow decrease never loosens beyond FORCING_MAX
+    assert _forcing(0.9, [1.0, 0.9], 1.0, 1e-3, opt) == FORCING_MAX
+    # close to convergence: no tighter than FORCING_FLOOR rtol ref / ||R||
+    assert _forcing(1e-9, [1e-4, 1e-9], 1.0, 1e-3, opt) == pytest.approx(FORCING_FLOOR * 1e-10 / 1e-9)
+
+
+def test_solve_to_of_direct_and_iterative_factors():
+    """A direct factor's solve_to solves to round-off; an iterative one stops at rtol."""
+    rng = np.random.default_rng(3)
+    K = sp.random(60, 60, density=0.1, random_state=4) + 10 * sp.identity(60)
+    K = sp.csr_matrix(K)
+    b = rng.standard_normal(60)
+    f = get_solver("superlu").factorize(K)
+    assert not f.inexact
+    x = f.solve_to(b, 1e-2)
+    assert np.linalg.norm(K @ x - b) <= 1e-13 * np.linalg.norm(b)
+    calls = []
+    exact = np.linalg.solve(K.toarray(), b)
+    g = sg.linsolve.Factor(lambda v: exact, K, solve_to=lambda v, r: calls.append(r) or 0.5 * exact)
+    assert g.inexact
+    g.solve_to(b, 1e-2)
+    assert calls == [1e-2] and g.relative_residual == pytest.approx(0.5)

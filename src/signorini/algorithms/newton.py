@@ -145,6 +145,13 @@ BACKTRACK = 8
 #: iterations without progress near round-off before Newton is declared stagnated
 STAGNATION = 4
 
+#: the loosest tolerance of an inexact Newton correction (an iterative solver's)
+FORCING_MAX = 1e-3
+#: an inexact correction aims at a residual this far below Newton's own tolerance,
+#: so that converged states (and finite differences of them) are as exact as a
+#: direct solver's
+FORCING_FLOOR = 1e-3
+
 
 def _stagnated(res: list[float], ref: float) -> bool:
     """The last STAGNATION+1 residuals are all tiny (< 1e-9 ref) and none is less
@@ -214,6 +221,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
     dw = None
     norm_prev = np.inf
     fac = None
+    forcing = None  # the last inexact solve's tolerance (an iterative solver's)
     for k in range(options.max_iter + 1):
         t0 = time.perf_counter()
         R, blocks = _evaluate_with_backtracking(model, w, params, t, state_n, dw, weights, norm_prev,
@@ -255,7 +263,9 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
                               f"{options.rtol:g}; raise max_iter or use smaller load steps)")
         if norm > options.divergence * ref:
             raise StepFailure("residual diverging")
-        fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=(k == 0))
+        forcing = _forcing(norm, steplog.residuals, ref, forcing, options)
+        fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=(k == 0),
+                              forcing=forcing)
         w[free] += dw
     raise AssertionError("unreachable")
 
@@ -280,8 +290,29 @@ def _evaluate_with_backtracking(model, w, params, t, state_n, dw, weights, norm_
     return R, blocks
 
 
-def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool):
-    """(factor, dw): the tangent assembled and factorised, K dw = -R solved and checked;
+def _forcing(norm: float, residuals: list[float], ref: float, last: float | None,
+             options) -> float:
+    """The tolerance of an inexact Newton correction, ||K dw + R|| <= eta ||R||
+    (an iterative solver's; a direct one solves to round-off whatever it is):
+    Eisenstat and Walker's choice eta = 0.9 (||R_k|| / ||R_k-1||)^2, kept from
+    falling faster than 0.9 eta_k-1^2 while that is above 0.1, at most
+    :data:`FORCING_MAX`, and never tighter than needed for the final residual to
+    lie FORCING_FLOOR times below ``rtol * ref`` (docs/theory.md §12.7)."""
+    if len(residuals) < 2 or last is None:
+        eta = FORCING_MAX
+    else:
+        eta = 0.9 * (norm / residuals[-2]) ** 2
+        if 0.9 * last**2 > 0.1:
+            eta = max(eta, 0.9 * last**2)
+    eta = min(eta, FORCING_MAX)
+    floor = FORCING_FLOOR * options.rtol * ref / norm if norm > 0 else FORCING_MAX
+    return float(min(FORCING_MAX, max(eta, floor)))
+
+
+def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool,
+                forcing: float | None = None):
+    """(factor, dw): the tangent assembled and factorised, K dw = -R solved and checked
+    (an iterative solver's only to the relative residual ``forcing``: :func:`_forcing`);
     a singular tangent fails the step (fatally at the first iteration)."""
     t0 = time.perf_counter()
     K = pattern.assemble(blocks)
@@ -294,11 +325,12 @@ def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool):
     steplog.time_factorization += time.perf_counter() - t0
     t0 = time.perf_counter()
     try:
-        dw = fac.solve(-Rf)
+        inexact = forcing is not None and fac.inexact
+        dw = fac.solve_to(-Rf, forcing) if inexact else fac.solve(-Rf)
     except SingularTangentError as e:
         raise StepFailure(str(e), fatal=first) from None
     lin = fac.relative_residual  # linsolve.Factor: every solver's factors are one
     steplog.time_solve += time.perf_counter() - t0
-    if lin > options.singular_check:
+    if lin > (max(options.singular_check, 2 * forcing) if inexact else options.singular_check):
         raise StepFailure(f"singular tangent (linear residual {lin:.1e})", fatal=first)
     return fac, dw

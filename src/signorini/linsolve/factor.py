@@ -31,8 +31,11 @@ class Factor:
     (factorised once, on first use)."""
 
     def __init__(self, solve, K: sp.spmatrix, refactor=None, transpose_factor=None,
-                 transposable: bool = False, residual=None):
+                 transposable: bool = False, residual=None, solve_to=None):
         self._solve = solve
+        # (b, rtol) -> x with ||K x - b|| <= rtol ||b||, for a backend whose solves are
+        # iterative and cost less at a looser tolerance (:meth:`solve_to`); None: exact
+        self._solve_to = solve_to
         # (x, b, transpose) -> b - K x (K^T x), or None if it cannot; default SciPy's product
         self._residual_of = residual
         self._transposable = transposable
@@ -147,6 +150,27 @@ class Factor:
         if self.backward_error > self.refine_tol and self._refactor is not None:
             self._solve, self._refactor = self._refactor(), None
             x = self._solve_refined(b, transpose)
+        return x
+
+    @property
+    def inexact(self) -> bool:
+        """Whether :meth:`solve_to` costs less at a looser tolerance (an iterative backend)."""
+        return self._solve_to is not None
+
+    def solve_to(self, b: np.ndarray, rtol: float) -> np.ndarray:
+        """x with ||K x - b|| <= rtol ||b|| (b one vector): the inexact solve of a
+        Newton correction (docs/theory.md §12.7). A direct factorisation solves to
+        round-off as :meth:`solve` does; an iterative backend stops at ``rtol``, and
+        the solve is neither checked for its backward error nor refined."""
+        if self._solve_to is None:
+            return self.solve(b)
+        b = np.asarray(b, dtype=float)
+        x = self._solve_to(b, rtol)
+        if not np.all(np.isfinite(x)):
+            raise SingularTangentError("the linear solve returned non-finite values (singular tangent)")
+        r = _residual(self.K, x, b)
+        self.relative_residual = float(np.linalg.norm(r) / max(np.linalg.norm(b), 1e-300))
+        self.backward_error = self.relative_residual  # not the row-wise one: not checked
         return x
 
     def _solve_refined(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:

@@ -126,7 +126,8 @@ class AMGKrylov(LinearSolver):
                 raise AssertionError("transposed solves go through transpose_factor")
             return self._krylov(K, apply, b)
 
-        f = Factor(solve, K, transpose_factor=lambda: self.factorize(K.T.tocsr(), symmetric))
+        f = Factor(solve, K, transpose_factor=lambda: self.factorize(K.T.tocsr(), symmetric),
+                   solve_to=lambda b, rtol: self._krylov(K, apply, b, max(rtol, self.rtol)))
         f.refine_tol = self.REFINE_TOL
         return f
 
@@ -182,18 +183,19 @@ class AMGKrylov(LinearSolver):
             K._inf_norm = v
         return v
 
-    def _krylov(self, K, apply, b):
+    def _krylov(self, K, apply, b, rtol: float | None = None):
         from pyamg.krylov import fgmres  # noqa: PLC0415  (lazy, as above)
         import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
 
         b = np.asarray(b, dtype=float)
         if b.ndim == 2:
-            return np.column_stack([self._krylov(K, apply, b[:, j]) for j in range(b.shape[1])])
+            return np.column_stack([self._krylov(K, apply, b[:, j], rtol) for j in range(b.shape[1])])
         if not np.any(b):
             return np.zeros_like(b)
         M = spla.LinearOperator(K.shape, matvec=apply, dtype=float)
         res: list = []
-        x, info = fgmres(K, b, tol=self.rtol, restart=self.restart,
+        rtol = self.rtol if rtol is None else rtol
+        x, info = fgmres(K, b, tol=rtol, restart=self.restart,
                          maxiter=max(1, self.max_iterations // self.restart), M=M, residuals=res)
         self.iterations.append(len(res) - 1)
         if info != 0:
@@ -205,10 +207,10 @@ class AMGKrylov(LinearSolver):
             # ||K|| ||x|| / ||b||)
             eta = float(np.abs(r).max() / (self._norm(K) * np.abs(x).max() + np.abs(b).max()))
             log.debug("GMRES stopped at ||r||/||b|| = %.1e, backward error %.1e", rel, eta)
-            if eta <= self.rtol:
+            if rel <= rtol or eta <= self.rtol:
                 return x
             raise SolverError(
                 f"the iterative solver (AMG-preconditioned GMRES) did not reach the relative "
-                f"residual {self.rtol:g} in {len(res) - 1} iterations (reached {rel:.1e}); use a "
+                f"residual {rtol:g} in {len(res) - 1} iterations (reached {rel:.1e}); use a "
                 "direct solver (solver='pardiso' or 'superlu'), or a larger max_iterations")
         return x
