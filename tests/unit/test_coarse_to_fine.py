@@ -224,3 +224,29 @@ def test_prolongation_reproduces_affine_fields():
     wc[: 2 * cm.n_nodes] = (Xc @ A.T + [1.0, -2.0]).ravel()
     wf = Prolongation(cm, fm)(wc)
     assert np.allclose(wf[: 2 * fm.n_nodes].reshape(-1, 2), Xf @ A.T + [1.0, -2.0], atol=1e-12)
+
+
+def test_a_3d_tensor_grid_is_interpolated_trilinearly_in_its_cells():
+    """Coarse nodes forming a box grid: trilinear interpolation in the grid cells,
+    exact for a trilinear field (the coarse Q1 solution itself), linear
+    extrapolation outside; a mesh that is not a grid goes through the
+    tetrahedralisation, exact for affine fields."""
+    from signorini.algorithms.prolongation import _grid_of, _linear_weights
+    from signorini.problems.hertz3d import hertz3d_problem
+
+    Xc = np.asarray(hertz3d_problem(n_fine=2, size=4.0).mesh.nodes, dtype=float)
+    Xf = np.asarray(hertz3d_problem(n_fine=3, size=4.0).mesh.nodes, dtype=float)
+    assert _grid_of(Xc) is not None
+    f = lambda X: 1 + X[:, 0] - 2 * X[:, 1] + 3 * X[:, 2] + 5 * X[:, 0] * X[:, 1] * X[:, 2]  # noqa: E731
+    P = _linear_weights(Xc, Xf)
+    inside = np.all((Xf >= Xc.min(axis=0)) & (Xf <= Xc.max(axis=0)), axis=1)
+    assert np.abs(P @ f(Xc) - f(Xf))[inside].max() < 1e-12 * np.abs(f(Xf)).max()
+    lo, hi = Xc.min(axis=0), Xc.max(axis=0)
+    out = np.array([hi + 0.1 * (hi - lo), lo - 0.05 * (hi - lo)])  # beyond two corners
+    g = lambda X: X @ [1.0, 2.0, -3.0] + 0.5  # noqa: E731
+    assert np.allclose(_linear_weights(Xc, out) @ g(Xc), g(out), atol=1e-12)
+    # not a grid (one node moved): the tetrahedralisation, exact for affine fields
+    Xp = Xc.copy()
+    Xp[len(Xp) // 2] += 1e-3 * (hi - lo)
+    assert _grid_of(Xp) is None
+    assert np.allclose(_linear_weights(Xp, Xf[inside]) @ g(Xp), g(Xf[inside]), atol=1e-10)

@@ -16,11 +16,58 @@ from ..fem.mesh import parts
 _BUILDER: list = []
 
 
+def _grid_of(Xc: np.ndarray):
+    """(axes, node) if the points Xc are exactly the tensor product of their
+    coordinate values (a structured box mesh): axes[k] the sorted values along
+    axis k, node the point at each grid position (C order); else None."""
+    axes = [np.unique(Xc[:, k]) for k in range(Xc.shape[1])]
+    shape = tuple(a.size for a in axes)
+    if int(np.prod(shape)) != len(Xc) or min(shape) < 2:
+        return None
+    flat = np.ravel_multi_index([np.searchsorted(a, Xc[:, k]) for k, a in enumerate(axes)], shape)
+    node = np.full(len(Xc), -1)
+    node[flat] = np.arange(len(Xc))
+    return (axes, node) if np.all(node >= 0) else None
+
+
+def _grid_weights(axes, node, Xf: np.ndarray) -> sp.csr_matrix:
+    """(nf, nc) trilinear (bilinear) interpolation on a tensor grid: in the grid
+    cell of each point (by a binary search per axis), extrapolated linearly from
+    the nearest cell for a point outside the grid."""
+    nf, d = Xf.shape
+    shape = tuple(a.size for a in axes)
+    lo, t = [], []
+    for k, a in enumerate(axes):
+        i = np.clip(np.searchsorted(a, Xf[:, k], side="right") - 1, 0, a.size - 2)
+        lo.append(i)
+        t.append((Xf[:, k] - a[i]) / (a[i + 1] - a[i]))
+    rows, cols, vals = [], [], []
+    for corner in range(2**d):
+        bits = [(corner >> k) & 1 for k in range(d)]
+        w = np.ones(nf)
+        for k in range(d):
+            w *= t[k] if bits[k] else 1.0 - t[k]
+        rows.append(np.arange(nf))
+        cols.append(node[np.ravel_multi_index([lo[k] + bits[k] for k in range(d)], shape)])
+        vals.append(w)
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(nf, len(node)))
+
+
 def _linear_weights(Xc: np.ndarray, Xf: np.ndarray) -> sp.csr_matrix:
     """(nf, nc) interpolation matrix: piecewise linear on the Delaunay triangulation
     (tetrahedralisation in 3-D) of the coarse points Xc; a point outside it is
-    extrapolated linearly from a simplex at its nearest coarse point."""
+    extrapolated linearly from a simplex at its nearest coarse point. In 3-D, coarse
+    points that form a tensor grid (a structured box of hexahedra) are interpolated
+    trilinearly in their cells instead (:func:`_grid_weights`): the coarse solution
+    itself, where a tetrahedralisation of a grid's cospherical points is slow and
+    degenerate (measured: 3.6 s for 47,652 fine nodes in 5,776 coarse ones, against
+    0.02 s)."""
     nf, nc = len(Xf), len(Xc)
+    if Xc.shape[1] == 3:
+        grid = _grid_of(Xc)
+        if grid is not None:
+            return _grid_weights(*grid, Xf)
     from scipy.spatial import Delaunay, cKDTree  # lazy: heavy (scipy.special), coarse starts only
 
     d = Xc.shape[1]
