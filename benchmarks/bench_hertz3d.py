@@ -10,6 +10,12 @@ filled by the rows before it (the first row of a table pays the compilation):
   of Dp/DR - Hertz's over the nodes with r < 0.7 a, relative to |Dp/DR(0)|.
 * ``solvers`` (``--solver-sizes``): the same frictionless runs with ``--solver
   pardiso`` and ``--solver amg`` (time, peak memory, Newton iterations).
+* ``refined`` (``--refine-levels``): the default mesh refined ``--refine`` times
+  (every cell halved, so the cells keep their shapes and the multigrid its
+  iteration counts), with ``--refine-solvers`` (default pardiso and amg);
+  a solver is skipped at the sizes beyond ``--pardiso-up-to`` DOFs' level;
+  ``--friction-scale N_FINE REFINE`` adds one frictional run (mu = 0.3, 10
+  increments) with the iterative solver.
 * ``friction``: mu = 0.3, 10 increments, the 3-D model and ``--axisymmetric``
   at the same grid lines (``--n-fine`` 4, 8, 12): the differences between the
   two models along the x axis (p_N and the radial traction, off the axis,
@@ -96,6 +102,30 @@ def solvers(sizes, work: Path) -> list[dict]:
     return rows
 
 
+def refined(levels, solvers_, work: Path, pardiso_up_to: int, friction_scale=None) -> list[dict]:
+    """``--refine r`` of the default mesh with each solver; the frictional scale run."""
+    runs = [(["--refine", str(r)], r, "frictionless", solver) for r in levels for solver in solvers_
+            if not (solver == "pardiso" and r > pardiso_up_to)]
+    if friction_scale:
+        n, r = friction_scale
+        runs.append((["--n-fine", str(n), "--refine", str(r), "--set", "mu=0.3", "--steps", "10"],
+                     r, f"mu=0.3, 10 steps, n_fine {n}", "amg"))
+    rows = []
+    for args, r, case, solver in runs:
+        res = run(args + ["--no-fd", "--solver", solver], work / f"r{r}{solver}{len(rows)}")
+        s, t = res["summary"], res["summary"].get("timings", {})
+        its = s.get("krylov_iterations", [])
+        rows.append({"case": case, "refine": r, "solver": solver, "dofs": s["mesh"]["dofs"],
+                     "newton_its": sum(s["newton_iterations"]), "wall_s": round(res["wall_s"], 1),
+                     "peak_MB": round(res["peak_MB"]), "solve_s": round(t.get("solve_s", 0.0), 1),
+                     "sensitivities_s": round(t.get("sensitivities_s", 0.0), 1),
+                     "krylov_solves": len(its), "krylov_its": sum(its),
+                     "krylov_max": max(its, default=0),
+                     "p0": f"{s['p0']['computed']:.8f}"})
+        print(rows[-1], flush=True)
+    return rows
+
+
 def friction(sizes, work: Path) -> list[dict]:
     rows = []
     for n in sizes:
@@ -126,6 +156,13 @@ def main() -> None:
     ap.add_argument("--friction-sizes", type=int, nargs="*", default=[4, 8, 12])
     ap.add_argument("--solver-sizes", type=int, nargs="*", default=[],
                     help="n_fine of a table of the direct against the iterative solver")
+    ap.add_argument("--refine-levels", type=int, nargs="*", default=[],
+                    help="--refine of the default mesh for a table of both solvers")
+    ap.add_argument("--refine-solvers", nargs="*", default=["pardiso", "amg"])
+    ap.add_argument("--pardiso-up-to", type=int, default=1,
+                    help="the largest --refine PARDISO runs at (its factors outgrow the memory)")
+    ap.add_argument("--friction-scale", type=int, nargs=2, metavar=("N_FINE", "REFINE"),
+                    help="one frictional run (mu = 0.3, 10 increments) with the iterative solver")
     ap.add_argument("--out-dir", type=Path, default=Path(__file__).resolve().parent / "results")
     a = ap.parse_args()
     a.out_dir.mkdir(parents=True, exist_ok=True)
@@ -137,6 +174,10 @@ def main() -> None:
         if a.solver_sizes:
             print("hertz3d, frictionless: PARDISO against AMG-GMRES (whole process, --no-fd)")
             report(solvers(a.solver_sizes, work), a.out_dir / "hertz3d_solvers.csv")
+        if a.refine_levels or a.friction_scale:
+            print("hertz3d refined (whole process, --no-fd)")
+            report(refined(a.refine_levels, a.refine_solvers, work, a.pardiso_up_to,
+                           a.friction_scale), a.out_dir / "hertz3d_refined.csv")
         if a.friction_sizes:
             print("hertz3d, mu = 0.3: the 3-D and the axisymmetric models")
             report(friction(a.friction_sizes, work), a.out_dir / "hertz3d_friction.csv")

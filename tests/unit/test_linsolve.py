@@ -155,6 +155,18 @@ def test_summary_names_the_solver(tmp_path):
     s = hertz_cmd.run(tmp_path / "h", fd_check=False, size=8, coarse_start=False)
     assert s["solver"] == get_solver("auto").name and s["symmetric_factorization"] is True
     assert s["symmetric_factorisation"] is True  # the key's 0.1 spelling, kept for one release
+    assert "krylov_iterations" not in s  # a direct solver's summary has none
+
+
+def test_summary_of_the_iterative_solver_has_its_krylov_iterations():
+    from signorini.app.runner import solver_entries
+    lin = get_solver("amg")
+    lin.iterations.extend([12, 40])
+
+    class Sol:
+        symmetric = True
+    s = solver_entries(lin, Sol())
+    assert s["solver"] == "amg" and s["krylov_iterations"] == [12, 40]
 
 
 # ------------------------------------------------------------- factorisations

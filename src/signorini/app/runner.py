@@ -80,9 +80,15 @@ def write_summary_json(out: Path, summary: dict) -> dict:
 
 def solver_entries(solver, solution) -> dict:
     """The linear solver of a summary and whether its tangents were factorised as
-    symmetric (also under the key's 0.1 spelling, kept for one release)."""
-    return {"solver": solver.name, "symmetric_factorization": solution.symmetric,
-            "symmetric_factorisation": solution.symmetric}
+    symmetric (also under the key's 0.1 spelling, kept for one release); for an
+    iterative solver the Krylov iterations of every solve of the process (coarse
+    levels, Newton corrections, sensitivities, in their order)."""
+    out = {"solver": solver.name, "symmetric_factorization": solution.symmetric,
+           "symmetric_factorisation": solution.symmetric}
+    its = getattr(solver, "iterations", None)  # an iterative solver's, solve by solve
+    if its is not None:
+        out["krylov_iterations"] = [int(k) for k in its]
+    return out
 
 
 def newton_log(solution) -> dict:
