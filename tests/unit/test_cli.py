@@ -143,6 +143,8 @@ def test_rtol_and_max_iter_reach_newton(tmp_path):
         runs[rtol] = s = json.loads((out / "summary.json").read_text())
         assert s["newton_stops"] == ["rtol"]
         assert s["newton_relative_residuals"][0] <= float(rtol)
+        t = s["newton_time_s"]  # where Newton's time went: all three parts measured
+        assert set(t) == {"assembly", "factorization", "solve"} and all(v > 0 for v in t.values())
     assert runs["0.5"]["newton_iterations"][0] < runs["1e-11"]["newton_iterations"][0]
     # one Newton iteration is not enough: the increment is cut until the budget is spent
     out = tmp_path / "few"

@@ -95,12 +95,17 @@ def newton_log(solution) -> dict:
     """The Newton entries of a summary, per converged increment: iterations,
     residual norms, the relative residual reached and why Newton stopped
     ("rtol", or "round-off floor": the residual stopped falling above rtol while
-    the corrections no longer changed the solution; NewtonOptions)."""
+    the corrections no longer changed the solution; NewtonOptions); and the time
+    of its tangents' assembly (element and contact kernels included), their
+    factorisation (an iterative solver's preconditioner setup) and the solves."""
     incs = solution.increments
     return {"newton_iterations": solution.newton_iterations,
             "newton_residuals": [inc.newton.residuals for inc in incs],
             "newton_relative_residuals": [float(inc.newton.relative_residual) for inc in incs],
-            "newton_stops": [inc.newton.stop for inc in incs]}
+            "newton_stops": [inc.newton.stop for inc in incs],
+            # where Newton's time went, summed over the increments (the fine mesh's)
+            "newton_time_s": {k: round(sum(getattr(inc.newton, "time_" + k, 0.0) for inc in incs), 3)
+                              for k in ("assembly", "factorization", "solve")}}
 
 
 def summary_header(status: str, solution=None, reason: str = "") -> dict:
