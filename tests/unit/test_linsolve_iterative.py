@@ -103,3 +103,23 @@ def test_solve_to_of_direct_and_iterative_factors():
     assert g.inexact
     g.solve_to(b, 1e-2)
     assert calls == [1e-2] and g.relative_residual == pytest.approx(0.5)
+
+
+def test_newton_corrections_reuse_the_last_hierarchy(monkeypatch):
+    """An inexact solve uses the last multigrid hierarchy for up to REUSE solves; a
+    full solve (the sensitivities) builds its own: fewer setups, the same solution."""
+    pb = hertz3d(block(n=5))
+    built = {}
+    for reuse in (0, AMGKrylov.REUSE):
+        lin = AMGKrylov()
+        lin.REUSE = reuse
+        calls = []
+        real = lin._hierarchy
+        monkeypatch.setattr(lin, "_hierarchy", lambda As, real=real, calls=calls: calls.append(1) or real(As))
+        sol = sg.solve(pb, wrt=["R"], solver=lin)
+        built[reuse] = (len(calls), sol.newton_iterations[0], sol.contact())
+    n0, it0, c0 = built[0]
+    n4, it4, c4 = built[AMGKrylov.REUSE]
+    assert n0 == it0 + 1  # a hierarchy per correction, one for the sensitivities
+    assert n4 == -(-it4 // (AMGKrylov.REUSE + 1)) + 1 < n0
+    same(c0, c4, ["p_N", "dp_N_dR"], tol=1e-9)

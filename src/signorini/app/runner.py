@@ -97,7 +97,8 @@ def newton_log(solution) -> dict:
     ("rtol", or "round-off floor": the residual stopped falling above rtol while
     the corrections no longer changed the solution; NewtonOptions); and the time
     of its tangents' assembly (element and contact kernels included), their
-    factorisation (an iterative solver's preconditioner setup) and the solves."""
+    factorisation and the solves (an iterative solver builds its multigrid
+    hierarchy in a tangent's first solve: counted there)."""
     incs = solution.increments
     return {"newton_iterations": solution.newton_iterations,
             "newton_residuals": [inc.newton.residuals for inc in incs],

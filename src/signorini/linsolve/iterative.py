@@ -22,6 +22,13 @@ modes of the reference mesh as its near-null space; unsymmetric tangents
 is pyamg's flexible GMRES on K itself, to a relative residual ``rtol``; the
 solve is then checked and refined like a direct one (:class:`Factor`).
 
+Newton's corrections are solved inexactly (:meth:`Factor.solve_to`, to its
+forcing tolerance). The hierarchy is built on a factor's first solve: a full
+solve (sensitivities, adjoint) builds one for its own tangent; an inexact one
+uses the last hierarchy built while that has served fewer than ``REUSE``
+inexact solves, since the next tangents differ from its tangent mainly in their
+contact terms, which the Schur complement (rebuilt for every tangent) carries.
+
 The solver needs the tangent's structure (which rows are displacements of which
 node, which multipliers belong together): :func:`signorini.linsolve.for_model`
 binds it to a model before a solve.
@@ -99,6 +106,10 @@ class AMGKrylov(LinearSolver):
     name = "amg"
     #: the backward error below which a solve is not refined (Factor.refine_tol)
     REFINE_TOL = 1e-10
+    #: inexact solves (Newton's corrections) a hierarchy serves after the tangent it was
+    #: built for: the next tangents differ in their contact terms, and a loose solve
+    #: with the last hierarchy costs a few iterations more than a new setup would
+    REUSE = 4
 
     def __init__(self, rtol: float = 1e-11, restart: int = 100, max_iterations: int = 2000):
         try:
@@ -108,10 +119,12 @@ class AMGKrylov(LinearSolver):
         self.rtol, self.restart, self.max_iterations = rtol, restart, max_iterations
         self.structure: Structure | None = None
         self.iterations: list[int] = []  # GMRES iterations of every solve, for reports
+        self._kept: list | None = None  # [shape, V-cycle, inexact solves it served since built]
 
     def bind(self, model) -> None:
         """Take the tangent structure of ``model`` (called before each solve's first use)."""
         self.structure = structure_of(model)
+        self._kept = None
 
     def factorize(self, K, symmetric=False):
         if self.structure is None or self.structure.n_u + self.structure.lam_group.size != K.shape[0]:
@@ -119,29 +132,56 @@ class AMGKrylov(LinearSolver):
                              "signorini.solve / gradient (it binds the model), or call "
                              "solver.bind(model) first")
         K = sp.csr_matrix(K)
-        apply = self._preconditioner(K, symmetric)
+        As, schur = self._blocks(K, symmetric)
+        own: list = []  # this tangent's own hierarchy, once built
+
+        def preconditioner(fresh: bool):
+            """The preconditioner with this tangent's own hierarchy (``fresh``), or for an
+            inexact solve the last one built, if it has served fewer than REUSE solves."""
+            if not own:
+                kept = self._kept
+                if fresh or kept is None or kept[0] != K.shape or kept[2] >= self.REUSE:
+                    own.append(self._hierarchy(As))
+                    self._kept = [K.shape, own[0], 0]
+                else:
+                    kept[2] += 1
+                    return self._apply(K, kept[1], schur)
+            return self._apply(K, own[0], schur)
 
         def solve(b, transpose=False):
             if transpose:
                 raise AssertionError("transposed solves go through transpose_factor")
-            return self._krylov(K, apply, b)
+            return self._krylov(K, preconditioner(True), b)
 
         f = Factor(solve, K, transpose_factor=lambda: self.factorize(K.T.tocsr(), symmetric),
-                   solve_to=lambda b, rtol: self._krylov(K, apply, b, max(rtol, self.rtol)))
+                   solve_to=lambda b, rtol: self._krylov(K, preconditioner(False), b,
+                                                         max(rtol, self.rtol)))
         f.refine_tol = self.REFINE_TOL
         return f
 
     # ------------------------------------------------------------------ parts
-    def _preconditioner(self, K, symmetric: bool):
+    def _blocks(self, K, symmetric: bool):
+        """(the displacement block to build a hierarchy from, the multipliers'
+        Schur complement solve or None): A's symmetric part, and
+        S = D - C diag(A)^-1 B, block-diagonal per contact node, factorised exactly."""
+        import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy: 77 ms with scipy.linalg)
+
+        n_u, n = self.structure.n_u, K.shape[0]
+        A = K[:n_u, :n_u]
+        As = A if symmetric else (0.5 * (A + A.T)).tocsr()
+        if n == n_u:
+            return As, None
+        diag = As.diagonal()
+        inv = sp.diags(1.0 / np.where(diag != 0, diag, 1.0))
+        S = (K[n_u:, n_u:] - K[n_u:, :n_u] @ inv @ K[:n_u, n_u:]).tocsc()
+        return As, spla.splu(S).solve
+
+    def _hierarchy(self, As):
+        """One smoothed-aggregation V-cycle on the displacement block of every node
+        (prescribed DOFs as identity rows): a function of r_u."""
         import pyamg  # noqa: PLC0415  (lazy: loaded only by runs that use this solver)
-        import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above: 77 ms with scipy.linalg)
 
         st = self.structure
-        n_u, n = st.n_u, K.shape[0]
-        A, B = K[:n_u, :n_u], K[:n_u, n_u:]
-        C, D = K[n_u:, :n_u], K[n_u:, n_u:]
-        As = A if symmetric else (0.5 * (A + A.T)).tocsr()
-        # the displacement block of every node: prescribed DOFs as identity rows
         N = st.dim * len(st.nodes)
         diag = As.diagonal()
         scale = float(np.mean(np.abs(diag))) if diag.size else 1.0
@@ -151,26 +191,27 @@ class AMGKrylov(LinearSolver):
             (np.concatenate([Ac.data, np.full(held.size, scale)]),
              (np.concatenate([st.u_global[Ac.row], held]), np.concatenate([st.u_global[Ac.col], held]))),
             shape=(N, N)).tocsr().tobsr(blocksize=(st.dim, st.dim))
-        # a new hierarchy for every tangent: keeping the last one for the next Newton
-        # iteration's tangent took 1.3-1.4x the GMRES iterations, more than the setup
-        # saved (measured at 17,689 DOFs: 22.7 s against 18.4 s)
         ml = pyamg.smoothed_aggregation_solver(full, B=rigid_body_modes(st.nodes),
                                                 max_coarse=500, coarse_solver="splu")
         cycle = ml.aspreconditioner(cycle="V")
-        # S = D - C diag(A)^-1 B: block-diagonal per contact node, factorised exactly
-        if n > n_u:
-            inv = sp.diags(1.0 / np.where(diag != 0, diag, 1.0))
-            S = (D - C @ inv @ B).tocsc()
-            S_lu = spla.splu(S)
         u_full = np.zeros(N)
+
+        def v_cycle(r_u):
+            u_full[:] = 0.0
+            u_full[st.u_global] = r_u
+            return cycle.matvec(u_full)[st.u_global]
+        return v_cycle
+
+    def _apply(self, K, v_cycle, schur):
+        """P^-1: the V-cycle on the displacements, then the multipliers' Schur solve."""
+        n_u, n = self.structure.n_u, K.shape[0]
+        C = K[n_u:, :n_u] if schur is not None else None
 
         def apply(r):
             x = np.empty_like(r)
-            u_full[:] = 0.0
-            u_full[st.u_global] = r[:n_u]
-            x[:n_u] = cycle.matvec(u_full)[st.u_global]
-            if n > n_u:
-                x[n_u:] = S_lu.solve(r[n_u:] - C @ x[:n_u])
+            x[:n_u] = v_cycle(r[:n_u])
+            if schur is not None:
+                x[n_u:] = schur(r[n_u:] - C @ x[:n_u])
             return x
         return apply
 
