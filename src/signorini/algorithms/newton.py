@@ -304,7 +304,6 @@ def _forcing(norm: float, residuals: list[float], ref: float, last: float | None
         eta = 0.9 * (norm / residuals[-2]) ** 2
         if 0.9 * last**2 > 0.1:
             eta = max(eta, 0.9 * last**2)
-    eta = min(eta, FORCING_MAX)
     floor = FORCING_FLOOR * options.rtol * ref / norm if norm > 0 else FORCING_MAX
     return float(min(FORCING_MAX, max(eta, floor)))
 
