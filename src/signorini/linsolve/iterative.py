@@ -92,6 +92,43 @@ def rigid_body_modes(X: np.ndarray) -> np.ndarray:
     return np.column_stack([m.reshape(-1) for m in modes])
 
 
+def geometric_aggregates(M, X: np.ndarray, theta: float, max_nodes: int) -> list:
+    """The aggregates of every level of the hierarchy of ``M`` (BSR, one block per
+    node of X), chosen by the geometry of the mesh (docs/theory.md §12.7).
+
+    A neighbour j of node i (a nonzero block of M) is strongly connected to it when
+    |x_i - x_j|^-2 >= theta max_k |x_i - x_k|^-2: on a flat or long cell only the
+    neighbours across its short sides are, so the aggregates, and the coarse space,
+    follow the cells' stretching (a mesh of cells of aspect ratio below
+    theta^-1/2 keeps every neighbour). The next level's nodes are the aggregates'
+    centroids, neighbours where two aggregates touch. Returns the aggregation
+    operators (n_l x n_l+1, sparse), coarsening until at most ``max_nodes`` are left
+    or a level no longer coarsens.
+    """
+    from pyamg.aggregation import standard_aggregation  # noqa: PLC0415  (lazy, as below)
+
+    G = sp.csr_matrix((np.ones(M.indices.size), M.indices, M.indptr),
+                      shape=(M.shape[0] // M.blocksize[0],) * 2)
+    out: list = []
+    while X.shape[0] > max_nodes:
+        Gc = G.tocoo()
+        off = Gc.row != Gc.col
+        r, c = Gc.row[off], Gc.col[off]
+        w = 1.0 / np.maximum(np.einsum("ij,ij->i", X[r] - X[c], X[r] - X[c]), 1e-300)
+        strongest = np.zeros(X.shape[0])
+        np.maximum.at(strongest, r, w)
+        keep = w >= theta * strongest[r]
+        S = sp.csr_matrix((w[keep], (r[keep], c[keep])), shape=G.shape)
+        agg = standard_aggregation((S + S.T + sp.eye(G.shape[0])).tocsr())[0].tocsr()
+        if agg.shape[1] == 0 or agg.shape[1] > 0.9 * agg.shape[0]:
+            break
+        out.append(agg)
+        count = np.maximum(np.asarray(agg.sum(axis=0)).ravel(), 1.0)
+        X = (agg.T @ X) / count[:, None]
+        G = (agg.T @ G @ agg).tocsr()
+    return out
+
+
 class AMGKrylov(LinearSolver):
     """Flexible GMRES with an AMG block preconditioner (``solver="amg"``).
 
@@ -101,6 +138,8 @@ class AMGKrylov(LinearSolver):
         restart: GMRES inner iterations before a restart.
         max_iterations: the budget of one solve (inner iterations in all); beyond
             it the solve fails with an error that says so.
+        theta: the geometric strength threshold of the aggregation
+            (:func:`geometric_aggregates`).
     """
 
     name = "amg"
@@ -110,13 +149,17 @@ class AMGKrylov(LinearSolver):
     #: built for: the next tangents differ in their contact terms, and a loose solve
     #: with the last hierarchy costs a few iterations more than a new setup would
     REUSE = 4
+    #: nodes (times dim, unknowns) of the coarsest level, solved directly
+    MAX_COARSE = 500
 
-    def __init__(self, rtol: float = 1e-11, restart: int = 100, max_iterations: int = 2000):
+    def __init__(self, rtol: float = 1e-11, restart: int = 100, max_iterations: int = 2000,
+                 theta: float = 0.05):
         try:
             import pyamg  # noqa: F401, PLC0415  (lazy: checked when the solver is created)
         except ImportError:
             raise InputError("solver 'amg' needs pyamg: python3 -m pip install pyamg") from None
         self.rtol, self.restart, self.max_iterations = rtol, restart, max_iterations
+        self.theta = theta
         self.structure: Structure | None = None
         self.iterations: list[int] = []  # GMRES iterations of every solve, for reports
         self._kept: list | None = None  # [shape, V-cycle, inexact solves it served since built]
@@ -193,8 +236,11 @@ class AMGKrylov(LinearSolver):
             (np.concatenate([Ac.data, np.full(held.size, scale)]),
              (np.concatenate([st.u_global[Ac.row], held]), np.concatenate([st.u_global[Ac.col], held]))),
             shape=(N, N)).tocsr().tobsr(blocksize=(st.dim, st.dim))
-        ml = pyamg.smoothed_aggregation_solver(full, B=rigid_body_modes(st.nodes),
-                                                max_coarse=500, coarse_solver="splu")
+        aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
+        ml = pyamg.smoothed_aggregation_solver(
+            full, B=rigid_body_modes(st.nodes), max_coarse=self.MAX_COARSE, coarse_solver="splu",
+            aggregate=[("predefined", {"AggOp": a}) for a in aggregates],
+            max_levels=len(aggregates) + 1)
         cycle = ml.aspreconditioner(cycle="V")
         u_full = np.zeros(N)
 
