@@ -115,7 +115,8 @@ def test_newton_corrections_reuse_the_last_hierarchy(monkeypatch):
         lin.REUSE = reuse
         calls = []
         real = lin._hierarchy
-        monkeypatch.setattr(lin, "_hierarchy", lambda As, real=real, calls=calls: calls.append(1) or real(As))
+        monkeypatch.setattr(lin, "_hierarchy",
+                            lambda *a, real=real, calls=calls: calls.append(1) or real(*a))
         sol = sg.solve(pb, wrt=["R"], solver=lin)
         built[reuse] = (len(calls), sol.newton_iterations[0], sol.contact())
     n0, it0, c0 = built[0]
@@ -159,3 +160,59 @@ def test_aggregation_by_geometry_needs_fewer_iterations_on_stretched_cells():
     same(runs[0.0][0], runs[0.05][0], ["p_N", "dp_N_dR"], tol=1e-9)
     # the sensitivity solve (the last, to 1e-11): 52 against 31 when measured
     assert runs[0.05][1][-1] < 0.7 * runs[0.0][1][-1]
+
+
+def _tangents(pb, steps, monkeypatch):
+    """Every tangent the iterative solver is given while solving ``pb`` (with R's
+    sensitivity), with its structure."""
+    seen = []
+    real = AMGKrylov.factorize
+
+    def keep(self, K, symmetric=False):
+        seen.append((sp.csr_matrix(K).copy(), self.structure, symmetric))
+        return real(self, K, symmetric)
+    monkeypatch.setattr(AMGKrylov, "factorize", keep)
+    sg.solve(pb, steps=steps, wrt=["R"], solver=AMGKrylov())
+    monkeypatch.setattr(AMGKrylov, "factorize", real)
+    return seen
+
+
+def test_condensation_with_an_exact_inner_solve_is_the_inverse(monkeypatch):
+    """The node-by-node condensation of the multipliers around an exact solve of the
+    reduced operator solves K exactly: frictionless and with friction (open, sticking
+    and slipping nodes, unsymmetric), and for the transposed tangent (the adjoint)."""
+    import scipy.sparse.linalg as spla
+    from signorini.linsolve.condensation import condense
+    rng = np.random.default_rng(5)
+    kinds = set()
+    for pb, steps in ((hertz3d(block(n=4)), 1), (hertz3d_friction(block(n=4)), 2)):
+        K, st, _ = _tangents(pb, steps, monkeypatch)[-1]
+        for M in (K, K.T.tocsr()):
+            c = condense(M, st.n_u, st.lam_group, st.u_global, st.dim)
+            assert c is not None
+            kinds |= {(b.lam.shape[1], bool(np.any(b.Dp)), b.Pp is not None)
+                      for b in c.buckets if len(b.lam)}
+            exact = spla.splu(c.reduced(True, 1.0).tocsc()).solve
+            r = rng.standard_normal(M.shape[0])
+            x = c.preconditioner(exact)(r)
+            assert np.linalg.norm(M @ x - r) <= 1e-9 * np.linalg.norm(r)
+    # closed normals (1 multiplier, constrained), open nodes (D of full rank), and
+    # friction nodes with both constraints and rows in D's range
+    assert {(1, False, True), (1, True, False), (3, True, False), (3, True, True)} <= kinds
+
+
+def test_condensation_is_declined_where_a_multiplier_reaches_two_nodes():
+    """A multiplier row coupled to the displacements of two nodes (a mortar pair's
+    weighted gap) is not condensed: the solver keeps the block-triangular
+    preconditioner."""
+    from signorini.linsolve.condensation import condense
+    A = sp.identity(6) * 4.0
+    C = sp.csr_matrix(np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.5]]))  # nodes 0 and 1 (dim 3)
+    K = sp.bmat([[A, C.T], [C, None]]).tocsr()
+    assert condense(K, 6, np.array([0]), np.arange(6), 3) is None
+    C1 = sp.csr_matrix(np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.0]]))
+    K1 = sp.bmat([[A, C1.T], [C1, None]]).tocsr()
+    c = condense(K1, 6, np.array([0]), np.arange(6), 3)
+    assert c is not None
+    x = c.preconditioner(lambda v: v / 4.0)(np.arange(7.0))
+    assert np.allclose(K1 @ x, np.arange(7.0))

@@ -44,6 +44,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError, SolverError
 from .base import LinearSolver
+from .condensation import condense
 from .factor import Factor
 
 log = logging.getLogger("signorini")
@@ -140,6 +141,9 @@ class AMGKrylov(LinearSolver):
             it the solve fails with an error that says so.
         theta: the geometric strength threshold of the aggregation
             (:func:`geometric_aggregates`).
+        condense: condense node-local multipliers exactly in the preconditioner
+            (:mod:`signorini.linsolve.condensation`); False keeps the
+            block-triangular one everywhere.
     """
 
     name = "amg"
@@ -153,13 +157,13 @@ class AMGKrylov(LinearSolver):
     MAX_COARSE = 500
 
     def __init__(self, rtol: float = 1e-11, restart: int = 100, max_iterations: int = 2000,
-                 theta: float = 0.05):
+                 theta: float = 0.05, condense: bool = True):
         try:
             import pyamg  # noqa: F401, PLC0415  (lazy: checked when the solver is created)
         except ImportError:
             raise InputError("solver 'amg' needs pyamg: python3 -m pip install pyamg") from None
         self.rtol, self.restart, self.max_iterations = rtol, restart, max_iterations
-        self.theta = theta
+        self.theta, self.condense = theta, condense
         self.structure: Structure | None = None
         self.iterations: list[int] = []  # GMRES iterations of every solve, for reports
         self._kept: list | None = None  # [shape, V-cycle, inexact solves it served since built]
@@ -175,21 +179,45 @@ class AMGKrylov(LinearSolver):
                              "signorini.solve / gradient (it binds the model), or call "
                              "solver.bind(model) first")
         K = sp.csr_matrix(K)
-        As, multipliers = self._blocks(K, symmetric)
-        own: list = []  # this tangent's own hierarchy, once built
+        parts: dict = {}  # condensed or not -> (() -> the matrix, modes, V-cycle -> preconditioner)
+        own: dict = {}    # this tangent's own preconditioners: "full", "plain"
+
+        def blocks(condensed: bool):
+            if condensed not in parts:
+                parts[condensed] = self._blocks(K, symmetric, condensed)
+            return parts[condensed]
 
         def preconditioner(fresh: bool):
-            """The preconditioner with this tangent's own hierarchy (``fresh``), or for an
-            inexact solve the last one built, if it has served fewer than REUSE solves."""
-            if not own:
+            """A full solve's (``fresh``) preconditioner: this tangent's own hierarchy,
+            on the condensed operator where the multipliers are node-local. An
+            inexact solve's: the block-triangular one with the last hierarchy of A
+            built, if it has served fewer than REUSE solves (a condensed hierarchy is
+            not reused: the next tangents constrain other nodes in other frames)."""
+            if fresh:
+                if "full" not in own:
+                    matrix, modes, with_cycle = blocks(self.condense)
+                    if modes is not None:
+                        # condensed: the plain hierarchies are not needed for this tangent's
+                        # full solves; released before the new one is built (memory)
+                        self._kept = None
+                        own.pop("plain", None)
+                        parts.pop(False, None)
+                    v_cycle = self._hierarchy(matrix(), modes)
+                    own["full"] = with_cycle(v_cycle)
+                    if modes is None:  # not condensed: Newton's next corrections may use it
+                        own["plain"] = own["full"]
+                        self._kept = [K.shape, v_cycle, 0]
+                return own["full"]
+            if "plain" not in own:
+                matrix, _, with_cycle = blocks(False)
                 kept = self._kept
-                if fresh or kept is None or kept[0] != K.shape or kept[2] >= self.REUSE:
-                    own.append(self._hierarchy(As))
-                    self._kept = [K.shape, own[0], 0]
-                else:
+                if kept is not None and kept[0] == K.shape and kept[2] < self.REUSE:
                     kept[2] += 1
-                    return self._apply(kept[1], multipliers)
-            return self._apply(own[0], multipliers)
+                    return with_cycle(kept[1])
+                v_cycle = self._hierarchy(matrix())
+                self._kept = [K.shape, v_cycle, 0]
+                own["plain"] = with_cycle(v_cycle)
+            return own["plain"]
 
         def solve(b, transpose=False):
             if transpose:
@@ -203,27 +231,42 @@ class AMGKrylov(LinearSolver):
         return f
 
     # ------------------------------------------------------------------ parts
-    def _blocks(self, K, symmetric: bool):
-        """(the displacement block to build a hierarchy from, the multipliers' part of
-        the preconditioner or None): A's symmetric part, and (r_l, x_u) ->
-        S^-1 (r_l - C x_u) with S = D - C diag(A)^-1 B, block-diagonal per contact
-        node, factorised exactly."""
+    def _blocks(self, K, symmetric: bool, condensed: bool):
+        """(a function giving the displacement block to build a hierarchy from, a map
+        of the rigid-body modes into its frames or None if not condensed, V-cycle ->
+        the preconditioner).
+
+        ``condensed`` and where every multiplier row is node-local (rigid
+        obstacles), the multipliers are condensed exactly
+        (:mod:`signorini.linsolve.condensation`) and the hierarchy is built on the
+        reduced operator; otherwise (a mortar pair) on A's symmetric part, the
+        multipliers then solved from S = D - C diag(A)^-1 B (block-triangular)."""
         import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy: 77 ms with scipy.linalg)
 
-        n_u, n = self.structure.n_u, K.shape[0]
-        A = K[:n_u, :n_u]
-        As = A if symmetric else (0.5 * (A + A.T)).tocsr()
+        st = self.structure
+        n_u, n = st.n_u, K.shape[0]
+        diag = K.diagonal()[:n_u]
+        if n > n_u and condensed:
+            c = condense(K, n_u, st.lam_group, st.u_global, st.dim)
+            if c is not None:
+                scale = float(np.mean(np.abs(diag))) if diag.size else 1.0
+                return (lambda: c.reduced(symmetric, scale)), c.rotate_modes, c.preconditioner
+
+        def matrix():
+            A = K[:n_u, :n_u]
+            return A if symmetric else (0.5 * (A + A.T)).tocsr()
         if n == n_u:
-            return As, None
-        diag = As.diagonal()
+            return matrix, None, lambda v_cycle: self._apply(v_cycle, None)
         inv = sp.diags(1.0 / np.where(diag != 0, diag, 1.0))
         C = K[n_u:, :n_u]
         S_solve = spla.splu((K[n_u:, n_u:] - C @ inv @ K[:n_u, n_u:]).tocsc()).solve
-        return As, lambda r_l, x_u: S_solve(r_l - C @ x_u)
+        multipliers = lambda r_l, x_u: S_solve(r_l - C @ x_u)  # noqa: E731
+        return matrix, None, lambda v_cycle: self._apply(v_cycle, multipliers)
 
-    def _hierarchy(self, As):
+    def _hierarchy(self, As, modes=None):
         """One smoothed-aggregation V-cycle on the displacement block of every node
-        (prescribed DOFs as identity rows): a function of r_u."""
+        (prescribed DOFs as identity rows): a function of r_u. ``modes`` maps the
+        rigid-body modes (rows: free DOFs) into the frames of As."""
         import pyamg  # noqa: PLC0415  (lazy: loaded only by runs that use this solver)
 
         st = self.structure
@@ -231,14 +274,33 @@ class AMGKrylov(LinearSolver):
         diag = As.diagonal()
         scale = float(np.mean(np.abs(diag))) if diag.size else 1.0
         held = np.setdiff1d(np.arange(N), st.u_global)
-        Ac = As.tocoo()
-        full = sp.coo_matrix(
-            (np.concatenate([Ac.data, np.full(held.size, scale)]),
-             (np.concatenate([st.u_global[Ac.row], held]), np.concatenate([st.u_global[Ac.col], held]))),
-            shape=(N, N)).tocsr().tobsr(blocksize=(st.dim, st.dim))
+        # the CSR of all the nodes' DOFs written directly (the free DOFs keep their
+        # order), without the index arrays of a COO matrix: the largest matrix's
+        # temporaries set the solver's peak memory
+        As = As.tocsr()
+        count = np.ones(N, dtype=np.int64)
+        count[st.u_global] = np.diff(As.indptr)
+        indptr = np.concatenate([[0], np.cumsum(count)])
+        indices = np.empty(indptr[-1], dtype=np.int32)
+        data = np.empty(indptr[-1])
+        at = np.repeat(indptr[st.u_global] - As.indptr[:-1], np.diff(As.indptr))
+        at += np.arange(As.nnz)
+        indices[at] = st.u_global[As.indices]
+        data[at] = As.data
+        del at, As
+        indices[indptr[held]] = held
+        data[indptr[held]] = scale
+        full = sp.csr_matrix((data, indices, indptr), shape=(N, N))
+        del data, indices
+        if np.any(np.diff(st.u_global) < 0):
+            full.sort_indices()
+        full = full.tobsr(blocksize=(st.dim, st.dim))
+        B = rigid_body_modes(st.nodes)
+        if modes is not None:
+            B[st.u_global] = modes(B[st.u_global])
         aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
         ml = pyamg.smoothed_aggregation_solver(
-            full, B=rigid_body_modes(st.nodes), max_coarse=self.MAX_COARSE, coarse_solver="splu",
+            full, B=B, max_coarse=self.MAX_COARSE, coarse_solver="splu",
             aggregate=[("predefined", {"AggOp": a}) for a in aggregates],
             max_levels=len(aggregates) + 1)
         cycle = ml.aspreconditioner(cycle="V")
