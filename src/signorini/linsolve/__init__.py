@@ -21,8 +21,8 @@ Backends (``solver=`` of :func:`signorini.solve`, ``--solver`` of the CLI):
   symmetric-mode ordering of A + A^T.
 * ``umfpack`` -- through ``scikit-umfpack``, if installed.
 * ``amg`` -- iterative: flexible GMRES preconditioned by algebraic multigrid
-  (pyamg) on the displacements and the contact multipliers' Schur complement
-  node by node (:mod:`signorini.linsolve.iterative`), for large 3-D problems.
+  (pyamg) on the displacements, the contact multipliers condensed node by node
+  (:mod:`signorini.linsolve.iterative`), for large 3-D problems.
 * ``auto`` (the default) -- the fastest direct one installed: pardiso, else superlu.
 """
 
