@@ -222,6 +222,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
     norm_prev = np.inf
     fac = None
     forcing = None  # the last inexact solve's tolerance (an iterative solver's)
+    polished = False  # a converged inexact state taken one correction further
     for k in range(options.max_iter + 1):
         t0 = time.perf_counter()
         R, blocks = _evaluate_with_backtracking(model, w, params, t, state_n, dw, weights, norm_prev,
@@ -240,6 +241,18 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         log.debug("  t=%.6g it %d |R|=%.3e", t, k, norm)
         step = _relative(dw, w[free], disp)
         stop = _converged(norm, norm_prev, ref, step, options)
+        if (stop == "rtol" and not polished and k < options.max_iter and fac is not None
+                and forcing is not None and fac.inexact and norm > FORCING_FLOOR * options.rtol * ref):
+            # converged on an inexact correction, just below the tolerance: one more,
+            # solved to the floor, so that the state is as exact as a direct solver's
+            # (and finite differences of converged states as smooth)
+            polished = True
+            forcing = min(FORCING_MAX, FORCING_FLOOR * options.rtol * ref / norm)
+            fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=False,
+                                  forcing=forcing)
+            w[free] += dw
+            norm_prev = norm
+            continue
         if stop:
             steplog.converged, steplog.stop = True, stop
             if stop == "round-off floor":
