@@ -249,10 +249,8 @@ def _bucket(sel, k, lam, cols, U, s, Vt, Cb, Bb):
     ql = np.linalg.qr(W, mode="complete")[0]
     YR, YL = qr[:, :, :mc], ql[:, :, :mc]
     GY, YW = G @ YR, np.swapaxes(YL, 1, 2) @ W
-    cond = np.linalg.cond(GY), np.linalg.cond(YW)
-    if not (np.all(np.isfinite(cond[0])) and np.all(cond[0] < 1e12)
-            and np.all(np.isfinite(cond[1])) and np.all(cond[1] < 1e12)):
-        return None
+    if not (np.all(np.linalg.cond(GY) < 1e12) and np.all(np.linalg.cond(YW) < 1e12)):
+        return None  # dependent constraints (an infinite or NaN condition fails too)
     bucket.Pp = YR @ np.linalg.inv(GY) @ np.swapaxes(U2, 1, 2)
     bucket.Zg = V2 @ np.linalg.inv(YW) @ np.swapaxes(YL, 1, 2)
     QR = np.concatenate([qr[:, :, mc:], YR], axis=2)
