@@ -58,6 +58,17 @@ def test_amg_errors_are_named():
         sg.solve(hertz3d(block(n=3)), solver=AMGKrylov(restart=2, max_iterations=2))
 
 
+@pytest.mark.parametrize("kwargs, name", [
+    ({"condense": "always"}, "condense"), ({"condense": 1}, "condense"),
+    ({"theta": -0.1}, "theta"), ({"theta": 2.0}, "theta"), ({"theta": float("nan")}, "theta"),
+    ({"rtol": 0.0}, "rtol"), ({"rtol": 1.5}, "rtol"), ({"restart": 0}, "restart"),
+    ({"max_iterations": 2.5}, "max_iterations")])
+def test_amg_options_are_checked(kwargs, name):
+    with pytest.raises(InputError, match=f"AMGKrylov: {name} (must|\\(the)"):
+        AMGKrylov(**kwargs)
+    AMGKrylov(theta=0.0, condense=False)  # the limits themselves are valid
+
+
 def test_newton_corrections_are_solved_inexactly_to_the_same_solution(monkeypatch):
     """With an iterative solver Newton's corrections stop at Eisenstat and Walker's
     forcing tolerance (about 1e-3 at first, not 1e-11): fewer Krylov iterations,

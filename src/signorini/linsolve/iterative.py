@@ -135,6 +135,23 @@ def geometric_aggregates(M, X: np.ndarray, theta: float, max_nodes: int) -> list
     return out
 
 
+def _check_options(rtol, restart, max_iterations, theta, condense) -> None:
+    """AMGKrylov's options, each checked with the error naming it."""
+    def number(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+    if not (number(rtol) and 0 < rtol < 1):
+        raise InputError(f"AMGKrylov: rtol must be a relative residual in (0, 1), got {rtol!r}")
+    for name, v in (("restart", restart), ("max_iterations", max_iterations)):
+        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
+            raise InputError(f"AMGKrylov: {name} must be a positive integer, got {v!r}")
+    if not (number(theta) and 0 <= theta <= 1):
+        raise InputError(f"AMGKrylov: theta (the geometric strength threshold) must lie in "
+                         f"[0, 1] (0 keeps every neighbour; default 0.05), got {theta!r}")
+    if condense not in (True, False, "symmetric") or isinstance(condense, (int, float)) \
+            and not isinstance(condense, bool):
+        raise InputError(f"AMGKrylov: condense must be True, False or 'symmetric', got {condense!r}")
+
+
 class AMGKrylov(LinearSolver):
     """Flexible GMRES with an AMG block preconditioner (``solver="amg"``).
 
@@ -170,6 +187,7 @@ class AMGKrylov(LinearSolver):
             import pyamg  # noqa: F401, PLC0415  (lazy: checked when the solver is created)
         except ImportError:
             raise InputError("solver 'amg' needs pyamg: python3 -m pip install pyamg") from None
+        _check_options(rtol, restart, max_iterations, theta, condense)
         self.rtol, self.restart, self.max_iterations = rtol, restart, max_iterations
         self.theta, self.condense = theta, condense
         self.structure: Structure | None = None
