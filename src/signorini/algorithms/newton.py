@@ -223,6 +223,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
     fac = None
     forcing = None  # the last inexact solve's tolerance (an iterative solver's)
     polished = False  # a converged inexact state taken one correction further
+    at_floor = False  # the last correction was solved to the floor's tolerance
     for k in range(options.max_iter + 1):
         t0 = time.perf_counter()
         R, blocks = _evaluate_with_backtracking(model, w, params, t, state_n, dw, weights, norm_prev,
@@ -242,10 +243,12 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         step = _relative(dw, w[free], disp)
         stop = _converged(norm, norm_prev, ref, step, options)
         if (stop == "rtol" and not polished and k < options.max_iter and fac is not None
-                and forcing is not None and fac.inexact and norm > FORCING_FLOOR * options.rtol * ref):
+                and forcing is not None and fac.inexact and not at_floor
+                and norm > FORCING_FLOOR * options.rtol * ref):
             # converged on an inexact correction, just below the tolerance: one more,
             # solved to the floor, so that the state is as exact as a direct solver's
-            # (and finite differences of converged states as smooth)
+            # (and finite differences of converged states as smooth); not where the
+            # correction that led here was already solved to the floor
             polished = True
             forcing = min(FORCING_MAX, FORCING_FLOOR * options.rtol * ref / norm)
             fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=False,
@@ -277,6 +280,13 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         if norm > options.divergence * ref:
             raise StepFailure("residual diverging")
         forcing = _forcing(norm, steplog.residuals, ref, forcing, options)
+        floor = min(FORCING_MAX, FORCING_FLOOR * options.rtol * ref / norm) if norm > 0 else 0.0
+        res = steplog.residuals
+        if len(res) >= 2 and res[-2] > 0 and norm * (norm / res[-2]) ** 2 <= options.rtol * ref:
+            # the correction expected to be the last (the residuals falling as fast as
+            # they did, squared): solved to the floor at once, not polished after
+            forcing = min(forcing, floor)
+        at_floor = forcing <= floor * (1.0 + 1e-12)
         fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=(k == 0),
                               forcing=forcing)
         w[free] += dw
