@@ -84,7 +84,12 @@ def test_newton_corrections_are_solved_inexactly_to_the_same_solution(monkeypatc
     n_newton = a.newton_iterations[0]
     # the first correction at 1e-3 takes a fraction of the tight solve's iterations
     assert loose.iterations[0] < 0.5 * tight.iterations[0]
-    assert sum(loose.iterations[:n_newton]) < 0.6 * sum(tight.iterations[:b.newton_iterations[0]])
+    # all of them, the last (expected to end the increment) solved to the floor of
+    # the tolerance: 40 against 65 when measured
+    assert sum(loose.iterations[:n_newton]) < 0.65 * sum(tight.iterations[:b.newton_iterations[0]])
+    log = a.increments[0].newton
+    assert log.residuals[-1] <= newton.FORCING_FLOOR * log.residuals[-1] / log.relative_residual \
+        * newton.NewtonOptions().rtol
 
 
 def test_forcing_terms():
@@ -248,3 +253,44 @@ def test_frictionless_sensitivity_solves_are_condensed(monkeypatch):
     assert len(made) == 1 and made[0] is not None  # the converged tangent, once
     same(runs[False][0], runs["symmetric"][0], ["p_N", "dp_N_dR"], tol=1e-9)
     assert runs["symmetric"][1] < 0.85 * runs[False][1]  # 22 against 31 when measured
+
+
+def test_several_right_hand_sides_share_their_search_space(monkeypatch):
+    """The sensitivities of several parameters solved with one tangent: each column
+    after the first starts from the space the columns before it searched (GCRO's
+    deflation), so it needs fewer iterations than alone, for the same solutions."""
+    captured = []
+    real = AMGKrylov._shared_gmres
+
+    def keep(self, K, apply, b, rtol):
+        captured.append((K, apply, b, self.structure))
+        return real(self, K, apply, b, rtol)
+    monkeypatch.setattr(AMGKrylov, "_shared_gmres", keep)
+    sg.solve(hertz3d_friction(block(n=5)), steps=2, wrt=["R", "E", "eps", "mu"], solver=AMGKrylov())
+    K, apply, b, st = captured[-1]
+    assert b.shape[1] == 4
+    shared, alone = AMGKrylov(), AMGKrylov()
+    alone.RECYCLE_BYTES = 0  # each column by its own GMRES
+    x = real(shared, K, apply, b, 1e-11)
+    y = alone._krylov(K, apply, b)
+    for j in range(4):
+        assert np.linalg.norm(b[:, j] - K @ x[:, j]) <= 1e-11 * np.linalg.norm(b[:, j])
+    assert np.abs(x - y).max() <= 1e-9 * np.abs(y).max()
+    assert shared.iterations[0] == alone.iterations[0]
+    # measured: 14-16 against 19-20 iterations for the later columns
+    assert all(s < 0.9 * a for s, a in zip(shared.iterations[1:], alone.iterations[1:]))
+
+
+def test_newton_with_an_iterative_solver_ends_without_a_wasted_correction():
+    """A correction already solved to the floor's tolerance is not polished once
+    more: every increment's last correction lowered the residual (before, a
+    converged state at round-off was corrected again: 1.1e-17 -> 1.3e-17 here, with
+    the tolerance rtol ref at the round-off floor, as in the hertz3d command)."""
+    from signorini.algorithms.newton import NewtonOptions
+    sol = sg.solve(hertz3d_friction(block(n=5)), steps=3, solver=AMGKrylov(),
+                   options=NewtonOptions(rtol=1e-12))
+    for inc in sol.increments:
+        res = inc.newton.residuals
+        assert inc.newton.converged and len(res) >= 2
+        assert res[-1] < 0.5 * res[-2], res
+

@@ -180,6 +180,8 @@ class AMGKrylov(LinearSolver):
     REUSE = 4
     #: nodes (times dim, unknowns) of the coarsest level, solved directly
     MAX_COARSE = 500
+    #: memory of the search space several right-hand sides share (:meth:`_shared_gmres`)
+    RECYCLE_BYTES = 1_500_000_000
 
     def __init__(self, rtol: float = 1e-11, restart: int = 100, max_iterations: int = 2000,
                  theta: float = 0.05, condense: bool | str = "symmetric"):
@@ -351,6 +353,105 @@ class AMGKrylov(LinearSolver):
             return x
         return apply
 
+    def _shared_gmres(self, K, apply, b, rtol: float):
+        """Several right-hand sides of one tangent (the sensitivities to several
+        parameters), one after the other, by flexible GMRES recycling the spaces
+        of the columns before (GCRO's deflation): U and C with K U = C, C
+        orthonormal, span what earlier columns searched. A column starts from
+        x0 = U C^T b and runs GMRES on (I - C C^T) K P^-1, so that what the
+        preconditioner leaves slow, found by the first column's iterations, is
+        not searched again; its own space is then added to U, C (K Z = V H,
+        H = Q R: C += V Q, U += (Z - U C^T K Z) R^-1). At most
+        :attr:`RECYCLE_BYTES` of U and C are kept; each cycle holds at most
+        ``restart`` directions."""
+        import scipy.linalg as sla  # noqa: PLC0415
+
+        n, k = b.shape
+        cap = int(min(self.max_iterations, self.RECYCLE_BYTES // (16 * n)))
+        U = np.empty((n, cap), order="F")
+        C = np.empty((n, cap), order="F")
+        q = 0
+        x = np.zeros((n, k), order="F")
+        mmax = self.restart
+        for j in range(k):
+            bj = b[:, j]
+            nb = float(np.linalg.norm(bj))
+            its = 0
+            xj = x[:, j]
+            r = bj.copy()
+            res = nb
+            while nb > 0.0 and res > rtol * nb and its < self.max_iterations:
+                if q:  # the part of r in C's span, from the recycled directions
+                    a_ = C[:, :q].T @ r
+                    xj += U[:, :q] @ a_
+                    r -= C[:, :q] @ a_
+                beta = float(np.linalg.norm(r))
+                if beta <= rtol * nb:
+                    res = float(np.linalg.norm(bj - K @ xj))
+                    if res <= rtol * nb:
+                        break
+                    r = bj - K @ xj
+                    beta = float(np.linalg.norm(r))
+                V = np.empty((n, mmax + 1), order="F")
+                Z = np.empty((n, mmax), order="F")
+                H = np.zeros((mmax + 1, mmax))
+                B = np.zeros((q, mmax))
+                V[:, 0] = r / beta
+                g = np.zeros(mmax + 1)
+                g[0] = beta
+                y = np.zeros(0)
+                i = 0
+                while i < mmax and its < self.max_iterations:
+                    z = apply(V[:, i])
+                    w = K @ z
+                    Z[:, i] = z
+                    for _ in range(2):
+                        if q:
+                            c_ = C[:, :q].T @ w
+                            w -= C[:, :q] @ c_
+                            B[:, i] += c_
+                        h = V[:, :i + 1].T @ w
+                        w -= V[:, :i + 1] @ h
+                        H[:i + 1, i] += h
+                    nw = float(np.linalg.norm(w))
+                    H[i + 1, i] = nw
+                    i += 1
+                    its += 1
+                    y, *_ = np.linalg.lstsq(H[:i + 1, :i], g[:i + 1], rcond=None)
+                    est = float(np.linalg.norm(g[:i + 1] - H[:i + 1, :i] @ y))
+                    if not (nw > 1e-14 * beta and np.isfinite(nw)):
+                        break  # the space holds the solution (or the preconditioner failed)
+                    V[:, i] = w / nw
+                    if est <= rtol * nb:
+                        break
+                # the correction: Z y minus its part K Z y already in C's span
+                dz = Z[:, :i] @ y
+                if q:
+                    dz -= U[:, :q] @ (B[:, :i] @ y)
+                xj += dz
+                # this cycle's space into the recycled one, where there is room
+                if q + i <= cap and np.all(np.isfinite(H[:i + 1, :i])):
+                    Qh, Rh = np.linalg.qr(H[:i + 1, :i])
+                    if np.min(np.abs(np.diag(Rh))) > 1e-12 * np.max(np.abs(np.diag(Rh))):
+                        Unew = Z[:, :i] - U[:, :q] @ B[:, :i] if q else Z[:, :i]
+                        U[:, q:q + i] = sla.solve_triangular(Rh.T, Unew.T, lower=True).T
+                        done = nw > 1e-14 * beta and np.isfinite(nw)  # V[:, i] was set
+                        C[:, q:q + i] = V[:, :i + 1] @ Qh if done else V[:, :i] @ Qh[:i]
+                        q += i
+                del V, Z
+                r = bj - K @ xj
+                res = float(np.linalg.norm(r))
+            self.iterations.append(its)
+            if nb > 0.0 and not res <= rtol * nb:
+                eta = float(np.abs(r).max() / (self._norm(K) * np.abs(xj).max() + np.abs(bj).max()))
+                if not eta <= self.rtol:
+                    raise SolverError(
+                        f"the iterative solver (AMG-preconditioned GMRES) did not reach the "
+                        f"relative residual {rtol:g} in {its} iterations (reached {res / nb:.1e}); "
+                        "use a direct solver (solver='pardiso' or 'superlu'), or a larger "
+                        "max_iterations")
+        return x
+
     @staticmethod
     def _norm(K) -> float:
         """||K||_inf (the largest absolute row sum), kept on the matrix."""
@@ -365,6 +466,8 @@ class AMGKrylov(LinearSolver):
         import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
 
         b = np.asarray(b, dtype=float)
+        if b.ndim == 2 and b.shape[1] > 1 and self.RECYCLE_BYTES > 0:
+            return self._shared_gmres(K, apply, b, self.rtol if rtol is None else rtol)
         if b.ndim == 2:
             return np.column_stack([self._krylov(K, apply, b[:, j], rtol) for j in range(b.shape[1])])
         if not np.any(b):
