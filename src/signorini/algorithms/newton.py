@@ -250,7 +250,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
             # (and finite differences of converged states as smooth); not where the
             # correction that led here was already solved to the floor
             polished = True
-            forcing = min(FORCING_MAX, FORCING_FLOOR * options.rtol * ref / norm)
+            forcing = _floor(norm, ref, options)
             fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=False,
                                   forcing=forcing)
             w[free] += dw
@@ -280,7 +280,7 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         if norm > options.divergence * ref:
             raise StepFailure("residual diverging")
         forcing = _forcing(norm, steplog.residuals, ref, forcing, options)
-        floor = min(FORCING_MAX, FORCING_FLOOR * options.rtol * ref / norm) if norm > 0 else 0.0
+        floor = _floor(norm, ref, options)
         res = steplog.residuals
         if len(res) >= 2 and res[-2] > 0 and norm * (norm / res[-2]) ** 2 <= options.rtol * ref:
             # the correction expected to be the last (the residuals falling as fast as
@@ -327,8 +327,13 @@ def _forcing(norm: float, residuals: list[float], ref: float, last: float | None
         eta = 0.9 * (norm / residuals[-2]) ** 2
         if 0.9 * last**2 > 0.1:
             eta = max(eta, 0.9 * last**2)
-    floor = FORCING_FLOOR * options.rtol * ref / norm if norm > 0 else FORCING_MAX
-    return float(min(FORCING_MAX, max(eta, floor)))
+    return float(min(FORCING_MAX, max(eta, _floor(norm, ref, options))))
+
+
+def _floor(norm: float, ref: float, options) -> float:
+    """The tightest forcing term a correction of the residual ``norm`` needs: its
+    linear error FORCING_FLOOR times below ``rtol * ref`` (at most FORCING_MAX)."""
+    return min(FORCING_MAX, FORCING_FLOOR * options.rtol * ref / norm) if norm > 0 else FORCING_MAX
 
 
 def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool,
