@@ -377,22 +377,15 @@ class AMGKrylov(LinearSolver):
         for j in range(k):
             bj = b[:, j]
             nb = float(np.linalg.norm(bj))
-            its = 0
             xj = x[:, j]
             r = bj.copy()
-            res = nb
-            while nb > 0.0 and res > rtol * nb and its < self.max_iterations:
-                if q:  # the part of r in C's span, from the recycled directions
-                    a_ = C[:, :q].T @ r
-                    xj += U[:, :q] @ a_
-                    r -= C[:, :q] @ a_
-                beta = float(np.linalg.norm(r))
-                if beta <= rtol * nb:
-                    res = float(np.linalg.norm(bj - K @ xj))
-                    if res <= rtol * nb:
-                        break
-                    r = bj - K @ xj
-                    beta = float(np.linalg.norm(r))
+            if q:  # the part of b in C's span, from the recycled directions
+                a_ = C[:, :q].T @ r
+                xj += U[:, :q] @ a_
+                r -= C[:, :q] @ a_
+            beta = float(np.linalg.norm(r))
+            its = 0
+            if beta > rtol * nb:  # one deflated cycle
                 V = np.empty((n, mmax + 1), order="F")
                 Z = np.empty((n, mmax), order="F")
                 H = np.zeros((mmax + 1, mmax))
@@ -400,8 +393,7 @@ class AMGKrylov(LinearSolver):
                 V[:, 0] = r / beta
                 g = np.zeros(mmax + 1)
                 g[0] = beta
-                y = np.zeros(0)
-                i = 0
+                i, broke = 0, False
                 while i < mmax and its < self.max_iterations:
                     z = apply(V[:, i])
                     w = K @ z
@@ -420,7 +412,8 @@ class AMGKrylov(LinearSolver):
                     its += 1
                     y, *_ = np.linalg.lstsq(H[:i + 1, :i], g[:i + 1], rcond=None)
                     est = float(np.linalg.norm(g[:i + 1] - H[:i + 1, :i] @ y))
-                    if not (nw > 1e-14 * beta and np.isfinite(nw)):
+                    broke = not (nw > 1e-14 * beta and np.isfinite(nw))
+                    if broke:
                         break  # the space holds the solution (or the preconditioner failed)
                     V[:, i] = w / nw
                     if est <= rtol * nb:
@@ -436,36 +429,17 @@ class AMGKrylov(LinearSolver):
                     if np.min(np.abs(np.diag(Rh))) > 1e-12 * np.max(np.abs(np.diag(Rh))):
                         Unew = Z[:, :i] - U[:, :q] @ B[:, :i] if q else Z[:, :i]
                         U[:, q:q + i] = sla.solve_triangular(Rh.T, Unew.T, lower=True).T
-                        done = nw > 1e-14 * beta and np.isfinite(nw)  # V[:, i] was set
-                        C[:, q:q + i] = V[:, :i + 1] @ Qh if done else V[:, :i] @ Qh[:i]
+                        C[:, q:q + i] = V[:, :i] @ Qh[:i] if broke else V[:, :i + 1] @ Qh
                         q += i
                 del V, Z
-                r = bj - K @ xj
-                res = float(np.linalg.norm(r))
-                if res > rtol * nb and its < self.max_iterations:
-                    # one deflated cycle per column: where it stopped short (its residual's
-                    # recurrence drifted from the true one near the floor of K U = C, or it
-                    # ran out of directions), plain flexible GMRES from there
-                    from pyamg.krylov import fgmres  # noqa: PLC0415  (lazy, as above)
-                    import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
-                    hist: list = []
-                    xj[:], _ = fgmres(K, bj, x0=xj.copy(), tol=rtol, restart=self.restart,
-                                      maxiter=max(1, (self.max_iterations - its) // self.restart),
-                                      M=spla.LinearOperator(K.shape, matvec=apply, dtype=float),
-                                      residuals=hist)
-                    its += len(hist) - 1
-                    r = bj - K @ xj
-                    res = float(np.linalg.norm(r))
-                break
+            if np.linalg.norm(bj - K @ xj) > rtol * nb:
+                # where the cycle stopped short (its residual's recurrence drifted from the
+                # true one near the accuracy of K U = C, or it ran out of directions):
+                # plain flexible GMRES from its iterate
+                xj[:], more = self._fgmres(K, apply, bj, rtol, x0=xj.copy(),
+                                           budget=self.max_iterations - its, spent=its)
+                its += more
             self.iterations.append(its)
-            if nb > 0.0 and not res <= rtol * nb:
-                eta = float(np.abs(r).max() / (self._norm(K) * np.abs(xj).max() + np.abs(bj).max()))
-                if not eta <= self.rtol:
-                    raise SolverError(
-                        f"the iterative solver (AMG-preconditioned GMRES) did not reach the "
-                        f"relative residual {rtol:g} in {its} iterations (reached {res / nb:.1e}); "
-                        "use a direct solver (solver='pardiso' or 'superlu'), or a larger "
-                        "max_iterations")
         return x
 
     @staticmethod
@@ -478,9 +452,6 @@ class AMGKrylov(LinearSolver):
         return v
 
     def _krylov(self, K, apply, b, rtol: float | None = None):
-        from pyamg.krylov import fgmres  # noqa: PLC0415  (lazy, as above)
-        import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
-
         b = np.asarray(b, dtype=float)
         if b.ndim == 2 and b.shape[1] > 1 and self.RECYCLE_BYTES > 0:
             return self._shared_gmres(K, apply, b, self.rtol if rtol is None else rtol)
@@ -488,12 +459,25 @@ class AMGKrylov(LinearSolver):
             return np.column_stack([self._krylov(K, apply, b[:, j], rtol) for j in range(b.shape[1])])
         if not np.any(b):
             return np.zeros_like(b)
+        x, its = self._fgmres(K, apply, b, self.rtol if rtol is None else rtol)
+        self.iterations.append(its)
+        return x
+
+    def _fgmres(self, K, apply, b, rtol: float, x0=None, budget: int | None = None,
+                spent: int = 0) -> tuple[np.ndarray, int]:
+        """(x, iterations): pyamg's flexible GMRES on K x = b from ``x0`` (zero),
+        within ``budget`` iterations (``max_iterations``), to the relative residual
+        ``rtol`` or the round-off floor of K's products; else a SolverError, which
+        counts ``spent`` iterations made before this solve."""
+        from pyamg.krylov import fgmres  # noqa: PLC0415  (lazy, as above)
+        import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
+
+        budget = self.max_iterations if budget is None else budget
         M = spla.LinearOperator(K.shape, matvec=apply, dtype=float)
         res: list = []
-        rtol = self.rtol if rtol is None else rtol
-        x, info = fgmres(K, b, tol=rtol, restart=self.restart,
-                         maxiter=max(1, self.max_iterations // self.restart), M=M, residuals=res)
-        self.iterations.append(len(res) - 1)
+        x, info = fgmres(K, b, x0=x0, tol=rtol, restart=self.restart,
+                         maxiter=max(1, budget // self.restart), M=M, residuals=res)
+        its = len(res) - 1
         if info != 0:
             r = b - K @ x
             rel = float(np.linalg.norm(r) / np.linalg.norm(b))
@@ -503,10 +487,9 @@ class AMGKrylov(LinearSolver):
             # ||K|| ||x|| / ||b||)
             eta = float(np.abs(r).max() / (self._norm(K) * np.abs(x).max() + np.abs(b).max()))
             log.debug("GMRES stopped at ||r||/||b|| = %.1e, backward error %.1e", rel, eta)
-            if rel <= rtol or eta <= self.rtol:
-                return x
-            raise SolverError(
-                f"the iterative solver (AMG-preconditioned GMRES) did not reach the relative "
-                f"residual {rtol:g} in {len(res) - 1} iterations (reached {rel:.1e}); use a "
-                "direct solver (solver='pardiso' or 'superlu'), or a larger max_iterations")
-        return x
+            if not (rel <= rtol or eta <= self.rtol):
+                raise SolverError(
+                    f"the iterative solver (AMG-preconditioned GMRES) did not reach the relative "
+                    f"residual {rtol:g} in {spent + its} iterations (reached {rel:.1e}); use a "
+                    "direct solver (solver='pardiso' or 'superlu'), or a larger max_iterations")
+        return x, its
