@@ -70,7 +70,7 @@ from .. import timing
 from ..errors import Interrupted
 from ..post.atomic import atomic
 from . import runner
-from ..linsolve import mkl_threads
+from ..linsolve import mkl_threads, product_threads
 from . import cli
 
 #: environment of the worker processes: one thread for XLA and BLAS/OpenMP per worker
@@ -197,7 +197,8 @@ def run_point(args: list[str], out: str, fresh: bool = False) -> dict:
             stale.unlink()
     err, std = _io.StringIO(), _io.StringIO()
     t0 = time.perf_counter()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std), mkl_threads(1):
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std), mkl_threads(1), \
+            product_threads(1):
         try:
             code = cli.main(list(args))
         except SystemExit as e:  # argparse usage errors

@@ -21,8 +21,10 @@ Backends (``solver=`` of :func:`signorini.solve`, ``--solver`` of the CLI):
   symmetric-mode ordering of A + A^T.
 * ``umfpack`` -- through ``scikit-umfpack``, if installed.
 * ``amg`` -- iterative: flexible GMRES preconditioned by algebraic multigrid
-  (pyamg) on the displacements, the contact multipliers condensed node by node
-  (:mod:`signorini.linsolve.iterative`), for large 3-D problems.
+  (pyamg's hierarchy, Chebyshev-smoothed V-cycles on all the cores,
+  :mod:`signorini.linsolve.multigrid`) on the displacements, the contact
+  multipliers condensed node by node (:mod:`signorini.linsolve.iterative`), for
+  large 3-D problems.
 * ``auto`` (the default) -- the fastest direct one installed: pardiso, else superlu.
 """
 
@@ -32,6 +34,7 @@ from .memory import GB, available_memory, check_size, estimated_peak_memory
 from .mkl import mkl_max_threads, mkl_threads, openblas_single_thread
 from .pardiso import Pardiso
 from .iterative import AMGKrylov
+from .multigrid import product_threads
 from .select import (
     AUTO_ORDER, SOLVERS, SYMMETRY_TOL, TangentSolver, available, blocks_symmetric, for_model,
     get_solver, is_symmetric)
@@ -43,4 +46,5 @@ __all__ = [
     "LinearSolver", "Pardiso", "SuperLU", "TangentSolver", "Umfpack", "available",
     "available_memory", "blocks_symmetric", "check_size", "diagonal", "estimated_peak_memory",
     "for_model", "get_solver", "is_symmetric", "mkl_max_threads", "mkl_threads", "openblas_single_thread",
+    "product_threads",
 ]
