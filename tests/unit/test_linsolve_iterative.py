@@ -277,7 +277,10 @@ def test_several_right_hand_sides_share_their_search_space(monkeypatch):
     for j in range(4):
         assert np.linalg.norm(b[:, j] - K @ x[:, j]) <= 1e-11 * np.linalg.norm(b[:, j])
     assert np.abs(x - y).max() <= 1e-9 * np.abs(y).max()
-    assert shared.iterations[0] == alone.iterations[0]
+    # the first column has nothing to recycle: the same GMRES (its orthogonalisation
+    # differs, pyamg's Householder against one or two Gram-Schmidt passes, so the last
+    # iteration's residual estimate may fall on either side of the tolerance)
+    assert abs(shared.iterations[0] - alone.iterations[0]) <= 1
     # measured: 14, 15, 18 against 19, 20, 19 iterations for the later columns, and
     # 15, 20, 18 against 20, 21, 20 in another process (CI)
     assert sum(shared.iterations[1:]) < sum(alone.iterations[1:]) - 3
