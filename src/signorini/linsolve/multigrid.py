@@ -9,7 +9,8 @@ with A and with the inverse of A's nodal diagonal blocks, which SciPy computes
 without Python's lock, so that they split by rows over threads. Degree 3 before
 and after the coarse correction needs as many Krylov iterations as the
 symmetric block Gauss-Seidel sweeps (34 against 33 on that block) at 0.17 s a
-cycle against 0.41 s on two cores.
+cycle against 0.41 s on two cores; degree 2 on the coarser levels, denser than
+the finest, brings the cycle to 0.10 s for 37 iterations.
 
 The smoother is the Chebyshev iteration (Saad, *Iterative Methods for Sparse
 Linear Systems*, Algorithm 12.1) for D^-1 A on [lambda_max / RATIO, 1.1
