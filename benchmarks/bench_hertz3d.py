@@ -102,14 +102,18 @@ def solvers(sizes, work: Path) -> list[dict]:
     return rows
 
 
-def refined(levels, solvers_, work: Path, pardiso_up_to: int, friction_scale=None) -> list[dict]:
-    """``--refine r`` of the default mesh with each solver; the frictional scale run."""
+def refined(levels, solvers_, work: Path, pardiso_up_to: int, friction_scale=None,
+            friction_wrt=None) -> list[dict]:
+    """``--refine r`` of the default mesh with each solver; the frictional scale run
+    (its sensitivities: ``friction_wrt``, else the command's four)."""
     runs = [(["--refine", str(r)], r, "frictionless", solver) for r in levels for solver in solvers_
             if not (solver == "pardiso" and r > pardiso_up_to)]
     if friction_scale:
         n, r = friction_scale
-        runs.append((["--n-fine", str(n), "--refine", str(r), "--set", "mu=0.3", "--steps", "10"],
-                     r, f"mu=0.3, 10 steps, n_fine {n}", "amg"))
+        wrt = ["--wrt", *friction_wrt] if friction_wrt else []
+        runs.append((["--n-fine", str(n), "--refine", str(r), "--set", "mu=0.3", "--steps", "10",
+                      *wrt], r, f"mu=0.3, 10 steps, n_fine {n}"
+                     + (f", wrt {' '.join(friction_wrt)}" if friction_wrt else ""), "amg"))
     rows = []
     for args, r, case, solver in runs:
         res = run(args + ["--no-fd", "--solver", solver], work / f"r{r}{solver}{len(rows)}")
@@ -163,6 +167,8 @@ def main() -> None:
                     help="the largest --refine PARDISO runs at (its factors outgrow the memory)")
     ap.add_argument("--friction-scale", type=int, nargs=2, metavar=("N_FINE", "REFINE"),
                     help="one frictional run (mu = 0.3, 10 increments) with the iterative solver")
+    ap.add_argument("--friction-wrt", nargs="+", metavar="NAME",
+                    help="the frictional scale run's sensitivities (default R E P mu)")
     ap.add_argument("--out-dir", type=Path, default=Path(__file__).resolve().parent / "results")
     a = ap.parse_args()
     a.out_dir.mkdir(parents=True, exist_ok=True)
@@ -177,7 +183,7 @@ def main() -> None:
         if a.refine_levels or a.friction_scale:
             print("hertz3d refined (whole process, --no-fd)")
             report(refined(a.refine_levels, a.refine_solvers, work, a.pardiso_up_to,
-                           a.friction_scale), a.out_dir / "hertz3d_refined.csv")
+                           a.friction_scale, a.friction_wrt), a.out_dir / "hertz3d_refined.csv")
         if a.friction_sizes:
             print("hertz3d, mu = 0.3: the 3-D and the axisymmetric models")
             report(friction(a.friction_sizes, work), a.out_dir / "hertz3d_friction.csv")

@@ -104,3 +104,20 @@ def test_hertz3d_coarse_start_changes_only_the_first_iterate(tmp_path, monkeypat
     b, _ = read(tmp_path / "p")
     for f in ("p_N", "dp_N_dR", "dp_N_dP"):
         assert np.allclose(a[f], b[f], rtol=0, atol=1e-8 * np.abs(b[f]).max()), f
+
+
+def test_hertz3d_wrt_selects_the_sensitivities(tmp_path):
+    """--wrt: only the named parameters' columns, FD checks and figures, the same
+    values as the default run's columns of those parameters."""
+    out_all, out_two = tmp_path / "all", tmp_path / "two"
+    assert main(["hertz3d", "--out", str(out_all), "--no-fd"] + SMALL) == 0
+    assert main(["hertz3d", "--out", str(out_two), "--wrt", "P", "E", "P"] + SMALL) == 0
+    a, _ = read(out_all)
+    b, s = read(out_two)
+    assert {k for k in b if k.startswith("dp_N_d")} == {"dp_N_dP", "dp_N_dE"}
+    assert set(s["ddm_vs_fd_rel_diff"]) == {"P", "E"} and max(s["ddm_vs_fd_rel_diff"].values()) < 1e-6
+    for k in ("dp_N_dP", "dp_N_dE"):
+        assert np.max(np.abs(a[k] - b[k])) <= 1e-9 * np.max(np.abs(a[k]))
+    assert not (out_two / "sensitivity.png").exists()  # its curve is dp_N/dR
+    with pytest.raises(SystemExit):
+        main(["hertz3d", "--out", str(tmp_path / "bad"), "--wrt", "Q"] + SMALL)

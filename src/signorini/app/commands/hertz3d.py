@@ -32,6 +32,8 @@ COARSEST = 4
 #: the increments of a frictional run (the path matters), and of a frictionless one
 STEPS_FRICTION, STEPS = 10, 1
 
+#: what --wrt may name
+WRT = ("R", "E", "P", "mu", "nu")
 HERTZ3D_SET = with_defaults({
     "E": "Young's modulus [N/mm²]", "nu": "Poisson's ratio", "P": "total force [N]",
     "R": "sphere radius [mm]", "mu": "Coulomb friction coefficient (0: frictionless)",
@@ -67,6 +69,10 @@ def add_parser(sub) -> None:
                    help="solve the same sphere problem with the axisymmetric model")
     path_options(p, steps_help=f"equal load increments (default {STEPS} frictionless, "
                                f"{STEPS_FRICTION} with friction)")
+    p.add_argument("--wrt", nargs="+", choices=WRT, metavar="NAME",
+                   help="the parameters of the DDM sensitivities (and of the FD check and the "
+                        "adjoint), among " + ", ".join(WRT) + " (default R E P, and mu with "
+                        "friction); each costs one more solve per increment")
     adjoint_option(p, "the contact work W = sum A p_N (g0 - g)")
     coarse_start_option(p)
     solver_options(p)
@@ -80,6 +86,7 @@ def execute(args) -> int:
             axisymmetric=args.axisymmetric, fd_check=not args.no_fd, solver=args.solver,
             size=args.block, zone=args.zone_width, force_size=args.force_size,
             adjoint=args.adjoint, coarse_start=not args.no_coarse_start,
+            sensitivities=list(dict.fromkeys(args.wrt)) if args.wrt else None,
             options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
     zone = f", c/a = {s['c_over_a']:.3f}" if isinstance(s.get("c_over_a"), float) else ""
     print(f"Hertz {s['model']} ({s['mesh']['dofs']} DOFs, {s['steps']} increment(s)): "
