@@ -52,7 +52,7 @@ def test_chebyshev_cycle_is_a_linear_contraction():
     A, B = elasticity(40)
     ml = pyamg.smoothed_aggregation_solver(A, B=B, max_coarse=50)
     assert len(ml.levels) >= 3
-    V = ChebyshevCycle(ml, 2)
+    V = ChebyshevCycle(ml)
     rng = np.random.default_rng(2)
     b1, b2 = rng.standard_normal((2, A.shape[0]))
     assert np.allclose(V(2.0 * b1 + b2), 2.0 * V(b1) + V(b2), rtol=0, atol=1e-12 * np.abs(V(b1)).max())

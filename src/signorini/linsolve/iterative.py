@@ -344,7 +344,7 @@ class AMGKrylov(LinearSolver):
             # theta 0.1): sparser coarse levels, a setup half as long
             strength=("symmetric", {"theta": self.FILTER}),
             smooth=("jacobi", {"omega": 4.0 / 3.0, "filter_entries": True}))
-        cycle = ChebyshevCycle(ml, st.dim)
+        cycle = ChebyshevCycle(ml)
         del ml
         u_full = np.zeros(N)
 

@@ -140,12 +140,13 @@ class _Level:
     """One level: A, the inverse of its nodal diagonal blocks, P, R and the
     Chebyshev interval."""
 
-    def __init__(self, level, blocksize: int, degree: int):
+    def __init__(self, level, degree: int):
         from pyamg.util.utils import get_block_diag  # noqa: PLC0415  (lazy: pyamg)
 
         A = level.A
         n = A.shape[0]
-        if blocksize > 1 and A.format == "bsr" and A.blocksize == (blocksize, blocksize):
+        blocksize = A.blocksize[0] if A.format == "bsr" else 1
+        if blocksize > 1 and A.blocksize == (blocksize, blocksize):
             Db = get_block_diag(A, blocksize=blocksize, inv_flag=True)
             nb = n // blocksize
             Dinv = sp.bsr_matrix((Db, np.arange(nb, dtype=np.int32),
@@ -154,8 +155,7 @@ class _Level:
             d = A.diagonal()
             Dinv = sp.diags(np.where(d != 0, 1.0 / np.where(d != 0, d, 1.0), 0.0)).tocsr()
         self.A, self.Dinv = RowSplit(A), RowSplit(Dinv)
-        self.P, self.R = RowSplit(level.P.tobsr() if level.P.format == "bsr" else level.P.tocsr()), \
-            RowSplit(level.R.tobsr() if level.R.format == "bsr" else level.R.tocsr())
+        self.P, self.R = (RowSplit(M if M.format == "bsr" else M.tocsr()) for M in (level.P, level.R))
         lam = _lambda_max(self.A, self.Dinv, n)
         self.hi, self.lo = 1.1 * lam, lam / RATIO
         self.degree = degree
@@ -186,14 +186,11 @@ class _Level:
 
 class ChebyshevCycle:
     """x = V(b): one V-cycle of pyamg's hierarchy ``ml`` with Chebyshev smoothing
-    (the module's text); ``blocksize``: the nodal block of the finest level."""
+    (the module's text); a level in BSR format is smoothed with its nodal blocks."""
 
-    def __init__(self, ml, blocksize: int):
-        self.levels = []
-        for lv in ml.levels[:-1]:
-            bs = lv.A.blocksize[0] if lv.A.format == "bsr" else 1
-            self.levels.append(_Level(lv, bs if bs > 1 else blocksize if not self.levels else 1,
-                                      COARSE_DEGREE if self.levels else DEGREE))
+    def __init__(self, ml):
+        self.levels = [_Level(lv, COARSE_DEGREE if i else DEGREE)
+                       for i, lv in enumerate(ml.levels[:-1])]
         coarse = ml.levels[-1].A
         solve = ml.coarse_solver
         self._coarse = lambda b: solve(coarse, b)  # noqa: E731
