@@ -263,9 +263,9 @@ def test_several_right_hand_sides_share_their_search_space(monkeypatch):
     captured = []
     real = AMGKrylov._shared_gmres
 
-    def keep(self, K, apply, b, rtol):
+    def keep(self, K, apply, b, rtol, x0=None):
         captured.append((K, apply, b, self.structure))
-        return real(self, K, apply, b, rtol)
+        return real(self, K, apply, b, rtol, x0)
     monkeypatch.setattr(AMGKrylov, "_shared_gmres", keep)
     sg.solve(hertz3d_friction(block(n=5)), steps=2, wrt=["R", "E", "eps", "mu"], solver=AMGKrylov())
     K, apply, b, st = captured[-1]
@@ -284,6 +284,75 @@ def test_several_right_hand_sides_share_their_search_space(monkeypatch):
     # measured: 14, 15, 18 against 19, 20, 19 iterations for the later columns, and
     # 15, 20, 18 against 20, 21, 20 in another process (CI)
     assert sum(shared.iterations[1:]) < sum(alone.iterations[1:]) - 3
+
+
+def test_a_solve_starts_from_its_guess_where_the_guess_is_better_than_none():
+    """Factor.solve(b, guess=...): an iterative factor starts from the guess (none
+    needed where it is the solution), declines one that leaves more residual than
+    zero does, and reaches the same accuracy either way; a direct factor ignores it."""
+    pb = hertz3d_friction(block(n=4))
+    captured = []
+    real = AMGKrylov._shared_gmres
+
+    def keep(self, K, apply, b, rtol, x0=None):
+        captured.append((self, K))
+        return real(self, K, apply, b, rtol, x0)
+    import unittest.mock as um
+    with um.patch.object(AMGKrylov, "_shared_gmres", keep):
+        sg.solve(pb, steps=2, wrt=["R", "E"], solver=AMGKrylov())
+    lin, K = captured[-1]
+    rng = np.random.default_rng(0)
+    x_true = rng.standard_normal((K.shape[0], 2))
+    b = np.column_stack([K @ x_true[:, j] for j in range(2)])
+    f = lin.factorize(K)
+    assert f.takes_guess and not get_solver("superlu").factorize(K).takes_guess
+    counts = {}
+    for name, guess in [("none", None), ("exact", x_true), ("bad", -3.0 * x_true),
+                        ("near", x_true + 1e-3 * rng.standard_normal(x_true.shape))]:
+        n0 = len(lin.iterations)
+        x = f.solve(b, guess=guess)
+        counts[name] = lin.iterations[n0:]
+        for j in range(2):
+            assert np.linalg.norm(b[:, j] - K @ x[:, j]) <= 1e-11 * np.linalg.norm(b[:, j])
+    assert counts["exact"] == [0, 0]
+    assert counts["bad"] == counts["none"]  # declined: ||b - K x0|| = 4 ||b||
+    assert sum(counts["near"]) < sum(counts["none"])
+    direct = get_solver("superlu").factorize(K)
+    assert np.abs(direct.solve(b, guess=-3.0 * x_true) - x_true).max() <= 1e-9 * np.abs(x_true).max()
+
+
+def test_sensitivity_solves_start_from_the_increments_before(monkeypatch):
+    """With an iterative solver an increment's sensitivity solves start from the
+    sensitivities of the two increments before, extrapolated linearly in t: the same
+    sensitivities in fewer iterations (the 43k-DOF frictional hertz3d: 10 % less
+    time in its sensitivities)."""
+    from signorini.algorithms import stepping
+    pb = hertz3d_friction(block(n=5))
+    runs = {}
+    for guess in (True, False):
+        if not guess:
+            monkeypatch.setattr(stepping._LoadPath, "_sensitivity_guess", lambda self, t: None)
+        lin = AMGKrylov()
+        spent = []
+        real = lin._shared_gmres
+
+        def count(K, apply, b, rtol, x0=None, real=real, lin=lin, spent=spent):
+            n0 = len(lin.iterations)
+            x = real(K, apply, b, rtol, x0)
+            spent.append(sum(lin.iterations[n0:]))
+            return x
+        monkeypatch.setattr(lin, "_shared_gmres", count)
+        sol = sg.solve(pb, steps=5, wrt=["R", "E", "mu"], solver=lin)
+        runs[guess] = (sol.contact(), spent)
+    same(runs[True][0], runs[False][0], ["p_N", "dp_N_dR", "dp_N_dE", "dp_N_dmu", "dp_T_dR"],
+         tol=1e-9)
+    with_guess, without = runs[True][1], runs[False][1]
+    assert len(with_guess) == len(without) == 5
+    # nothing to start from at the first increment: the same solve (its count varies by
+    # one or two between solves of one process: 57 to 59 measured, with or without)
+    assert abs(with_guess[0] - without[0]) <= 2
+    # measured: 58, 57, 63, 52 against 58, 61, 64, 63 (65) for increments 2 to 5
+    assert sum(with_guess[1:]) < sum(without[1:]) - 8
 
 
 def test_newton_with_an_iterative_solver_ends_without_a_wasted_correction():

@@ -500,8 +500,9 @@ class _LoadPath:
         w_dot = None
 
         def back_substitute(fac, or_none=False):
+            guess = self._sensitivity_guess(t_new) if getattr(fac, "takes_guess", False) else None
             try:
-                return self.ddm.back_substitute(fac, loads)
+                return self.ddm.back_substitute(fac, loads, guess)
             except SingularTangentError as e:
                 if or_none:  # a reused factor: factorise instead
                     return None, None
@@ -526,6 +527,21 @@ class _LoadPath:
         # finite: the pseudo-loads were checked, every solve is (linsolve.Factor)
         inc.sens = {n: w_dot[k] for k, n in enumerate(self.names)}
         inc.timing = timing
+
+    def _sensitivity_guess(self, t_new):
+        """(n_names, n_dof) the sensitivities at ``t_new`` extrapolated linearly from
+        the last two increments of this solve (the last one's where there is only
+        one), for an iterative solver to start from (it decides the cost, not the
+        result); None before the first increment."""
+        incs = [inc for inc in self.sol.increments[-2:]
+                if inc.sens and all(n in inc.sens for n in self.names)]
+        if not incs:
+            return None
+        last = np.stack([incs[-1].sens[n] for n in self.names])
+        if len(incs) == 1 or incs[-1].t <= incs[0].t:
+            return last
+        before = np.stack([incs[0].sens[n] for n in self.names])
+        return last + (t_new - incs[-1].t) / (incs[-1].t - incs[0].t) * (last - before)
 
 
 def _residual(model, w, params, t, state_n) -> np.ndarray:

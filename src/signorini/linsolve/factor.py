@@ -31,8 +31,11 @@ class Factor:
     (factorised once, on first use)."""
 
     def __init__(self, solve, K: sp.spmatrix, refactor=None, transpose_factor=None,
-                 transposable: bool = False, residual=None, solve_to=None):
+                 transposable: bool = False, residual=None, solve_to=None, solve_from=None):
         self._solve = solve
+        # (b, x0) -> x: the solve started from the guess x0, for a backend whose solves are
+        # iterative and cost less from a good guess (:meth:`solve`'s ``guess``); None: no use
+        self._solve_from = solve_from
         # (b, rtol) -> x with ||K x - b|| <= rtol ||b||, for a backend whose solves are
         # iterative and cost less at a looser tolerance (:meth:`solve_to`); None: exact
         self._solve_to = solve_to
@@ -131,8 +134,12 @@ class Factor:
                 break
         return eta
 
-    def solve(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
-        """x with K x = b (``transpose``: K^T x = b); b (n,) or (n, k)."""
+    def solve(self, b: np.ndarray, transpose: bool = False, guess=None) -> np.ndarray:
+        """x with K x = b (``transpose``: K^T x = b); b (n,) or (n, k).
+
+        ``guess``, shaped as b: an estimate of x an iterative backend starts from
+        (:attr:`takes_guess`); the result is checked and refined as any other, so the
+        guess decides the cost, not the accuracy. A direct backend ignores it."""
         b = np.asarray(b, dtype=float)
         if transpose and not self._transposable:
             if self._transpose_factor is None:
@@ -146,11 +153,16 @@ class Factor:
             self.backward_error = self._transposed.backward_error
             self.relative_residual = self._transposed.relative_residual
             return x
-        x = self._solve_refined(b, transpose)
+        x = self._solve_refined(b, transpose, None if transpose else guess)
         if self.backward_error > self.refine_tol and self._refactor is not None:
             self._solve, self._refactor = self._refactor(), None
             x = self._solve_refined(b, transpose)
         return x
+
+    @property
+    def takes_guess(self) -> bool:
+        """Whether :meth:`solve` starts from a ``guess`` (an iterative backend)."""
+        return self._solve_from is not None
 
     @property
     def inexact(self) -> bool:
@@ -173,10 +185,13 @@ class Factor:
         self.backward_error = self.relative_residual  # not the row-wise one: not checked
         return x
 
-    def _solve_refined(self, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+    def _solve_refined(self, b: np.ndarray, transpose: bool = False, guess=None) -> np.ndarray:
         K = self.K.T if transpose else self.K
         step = (lambda v: self._solve(v, True)) if transpose else self._solve
-        x = step(b)
+        if guess is not None and self._solve_from is not None:
+            x = self._solve_from(b, np.asarray(guess, dtype=float).reshape(b.shape))
+        else:
+            x = step(b)
         if not np.all(np.isfinite(x)):
             raise SingularTangentError("the linear solve returned non-finite values (singular tangent)")
         res = self._residual_of

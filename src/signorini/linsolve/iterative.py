@@ -262,6 +262,7 @@ class AMGKrylov(LinearSolver):
             return self._krylov(K, preconditioner(True), b)
 
         f = Factor(solve, K, transpose_factor=lambda: self.factorize(K.T.tocsr(), symmetric),
+                   solve_from=lambda b, x0: self._krylov(K, preconditioner(True), b, x0=x0),
                    solve_to=lambda b, rtol: self._krylov(K, preconditioner(False), b,
                                                          max(rtol, self.rtol)))
         f.refine_tol = self.REFINE_TOL
@@ -366,7 +367,7 @@ class AMGKrylov(LinearSolver):
             return x
         return apply
 
-    def _shared_gmres(self, K, apply, b, rtol: float):
+    def _shared_gmres(self, K, apply, b, rtol: float, x0=None):
         """Several right-hand sides of one tangent (the sensitivities to several
         parameters), one after the other, by flexible GMRES recycling the spaces
         of the columns before (GCRO's deflation): U and C with K U = C, C
@@ -377,7 +378,8 @@ class AMGKrylov(LinearSolver):
         H = Q R: C += V Q, U += (Z - U C^T K Z) R^-1). One such cycle (at most
         ``restart`` directions) per column; where it stops short of ``rtol``
         (near the accuracy of K U = C), plain flexible GMRES from its iterate. At
-        most :attr:`RECYCLE_BYTES` of U and C are kept."""
+        most :attr:`RECYCLE_BYTES` of U and C are kept. A column starts from its
+        guess in ``x0`` where that leaves less residual than zero does."""
         import scipy.linalg as sla  # noqa: PLC0415  (lazy: 77 ms with scipy.linalg)
 
         n, k = b.shape
@@ -392,7 +394,12 @@ class AMGKrylov(LinearSolver):
             bj = b[:, j]
             nb = float(np.linalg.norm(bj))
             xj = x[:, j]
-            r = bj.copy()
+            guess = None if x0 is None else _start(K, bj, x0[:, j])
+            if guess is None:
+                r = bj.copy()
+            else:
+                xj[:] = guess
+                r = bj - K @ xj
             if q:  # the part of b in C's span, from the recycled directions
                 a_ = C[:, :q].T @ r
                 xj += U[:, :q] @ a_
@@ -469,15 +476,20 @@ class AMGKrylov(LinearSolver):
             K._inf_norm = v
         return v
 
-    def _krylov(self, K, apply, b, rtol: float | None = None):
+    def _krylov(self, K, apply, b, rtol: float | None = None, x0=None):
+        """x with ||K x - b|| <= rtol ||b|| (b (n,) or (n, k)), from ``x0`` (shaped as
+        b) in the columns where it leaves a smaller residual than zero does."""
         b = np.asarray(b, dtype=float)
         if b.ndim == 2 and b.shape[1] > 1 and self.RECYCLE_BYTES > 0:
-            return self._shared_gmres(K, apply, b, self.rtol if rtol is None else rtol)
+            return self._shared_gmres(K, apply, b, self.rtol if rtol is None else rtol, x0)
         if b.ndim == 2:
-            return np.column_stack([self._krylov(K, apply, b[:, j], rtol) for j in range(b.shape[1])])
+            return np.column_stack([self._krylov(K, apply, b[:, j], rtol,
+                                                 None if x0 is None else x0[:, j])
+                                    for j in range(b.shape[1])])
         if not np.any(b):
             return np.zeros_like(b)
-        x, its = self._fgmres(K, apply, b, self.rtol if rtol is None else rtol)
+        x, its = self._fgmres(K, apply, b, self.rtol if rtol is None else rtol,
+                              x0=_start(K, b, x0))
         self.iterations.append(its)
         return x
 
@@ -512,3 +524,14 @@ class AMGKrylov(LinearSolver):
                     f"residual {rtol:g} in {spent + its} iterations (reached {rel:.1e}); use a "
                     "direct solver (solver='pardiso' or 'superlu'), or a larger max_iterations")
         return x, its
+
+
+def _start(K, b, x0):
+    """``x0`` if it is finite and leaves a smaller residual ||b - K x0|| than zero
+    does (||b||), else None: a guess that is no better than none is not used."""
+    if x0 is None:
+        return None
+    x0 = np.asarray(x0, dtype=float)
+    if not np.all(np.isfinite(x0)):
+        return None
+    return x0 if np.linalg.norm(b - K @ x0) < np.linalg.norm(b) else None

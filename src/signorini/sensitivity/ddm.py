@@ -164,12 +164,19 @@ class DDM:
                 f"these parameters: JAX's tangent through such a point is NaN for every one")
         return P_free, w_dot, time.perf_counter() - t0
 
-    def back_substitute(self, factor, loads: tuple):
+    def back_substitute(self, factor, loads: tuple, guess=None):
         """(w_dot, timings): the sensitivities from :meth:`pseudo_loads` ``loads``
-        and a factorisation of the free-free tangent at the same converged state."""
+        and a factorisation of the free-free tangent at the same converged state.
+
+        ``guess`` (n_names, n_dof): an estimate of w_dot an iterative solver starts
+        from (``factor.takes_guess``; the solve's accuracy is the same without)."""
         P_free, w_dot, t_pseudo = loads
         t1 = time.perf_counter()
-        X = factor.solve(P_free).reshape(P_free.shape[0], -1)
+        X0 = None
+        if guess is not None and getattr(factor, "takes_guess", False):
+            X0 = -np.take(guess, self.model.free, axis=1).T
+        X = (factor.solve(P_free) if X0 is None else factor.solve(P_free, guess=X0)) \
+            .reshape(P_free.shape[0], -1)
         # back row by row through a mask of the free DOFs, one contiguous row at a
         # time (fancy indexing on the last axis of the whole array goes through
         # NumPy's general advanced-indexing machinery)
