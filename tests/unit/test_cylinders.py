@@ -84,6 +84,19 @@ def test_cylinders_cli_outputs(tmp_path):
 
 
 @pytest.mark.slow  # 42k DOFs, ~1 min; test_mortar's frictional cylinders DDM = FD covers the code
+def test_frictional_cylinders_cli_checks_its_ddm_against_fd(tmp_path):
+    """With friction the summary's own FD check (the six parameters, p_N and p_T of
+    contact.csv inside 0.9 b) agrees with the DDM (it compared contact.csv's DDM
+    columns with the solution's own rows, in another order and with p_T of the other
+    sign: 2.0 for E1, mu and Q before)."""
+    out = tmp_path / "f"
+    assert main(["cylinders", "--out", str(out), "--set", "mu=0.3", "--set", "Q=0.015",
+                 "--steps", "6"] + SMALL) == 0
+    _, s = read(out)
+    assert set(s["ddm_vs_fd_rel_diff"]) == {"R1", "R2", "E1", "P", "mu", "Q"}
+    assert max(s["ddm_vs_fd_rel_diff"].values()) < 1e-6, s["ddm_vs_fd_rel_diff"]
+
+
 def test_mindlin_stick_zone_within_two_percent_at_refine_1(tmp_path):
     """Mindlin's partial slip: with cells of 1/32 of b (refine 1) the stick zone's
     c/b is within 2 % of sqrt(1 - Q/(mu P)) and b within one cell of Hertz's (on the

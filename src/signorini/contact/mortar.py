@@ -6,10 +6,14 @@ Per slave node j the contact law (:class:`~signorini.contact.methods.AugmentedLa
 :class:`~signorini.contact.friction.Coulomb`) sees, in place of the distance to a
 rigid obstacle, the mortar-weighted gap and slip (docs/theory.md §13)::
 
-    g_j = (1 / A_j) int_Gs N_j(X) g(X) dGamma_0,     s_j = (1 / A_j) int_Gs N_j(X) s(X) dGamma_0,
+    g_j = (1 / A_j) int_Gs Phi_j(X) g(X) dGamma_0,     s_j = (1 / A_j) int_Gs Phi_j(X) s(X) dGamma_0,
 
 A_j = int N_j dGamma_0 (the node's equivalent area, the same as on a rigid
-obstacle), N_j the slave node's shape function, g the distance from a slave
+obstacle), N_j the slave node's shape function and Phi_j its dual function
+(biorthogonal to the shape functions over the overlapped part of each slave
+segment: 2 N_j - N_other on a segment the master covers; :func:`_dual`), so
+that a linear gap's weighted value is its nodal value and the constraints of
+neighbouring nodes do not couple; g the distance from a slave
 point to the master surface along the slave segment's normal, s the tangential
 offset of the master material point now opposite the slave point. The
 integrals are taken segment by segment over the overlaps of each slave segment
@@ -187,6 +191,25 @@ def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarra
 
 
 # ------------------------------------------------------------- the per-node pair
+def _dual(Nj, No, w):
+    """Phi_j at the quadrature points: the slave node's dual function on one
+    segment, biorthogonal to the segment's two shape functions over the part of it
+    the master overlaps (quadrature weights ``w``): int Phi_j N_j = int N_j and
+    int Phi_j N_o = 0 there. On a wholly overlapped segment Phi_j = 2 N_j - N_o.
+    From the overlap's mass matrix M and D = diag(int N):
+    Phi_j = d_j (m_oo N_j - m_jo N_o) / det M; zero where nothing overlaps."""
+    m_jj, m_jo, m_oo = jnp.sum(w * Nj * Nj), jnp.sum(w * Nj * No), jnp.sum(w * No * No)
+    d_j = jnp.sum(w * Nj)
+    det = m_jj * m_oo - m_jo * m_jo
+    # an overlap of relative length delta has det ~ delta^2 / 12 of scale and Phi_j
+    # round-off errors ~ 1e-16 / delta; below delta ~ 1e-8 (where both the error and
+    # the overlap's whole contribution are ~1e-8 of a segment's) Phi_j is taken as 0
+    scale = (m_jj + m_oo) ** 2
+    ok = det > 1e-17 * scale
+    c = _safe_div(d_j, jnp.where(ok, det, 1.0)) * ok
+    return c * (m_oo * Nj - m_jo * No)
+
+
 def _safe_div(a, b):
     ok = jnp.abs(b) > 1e-300
     return jnp.where(ok, a / jnp.where(ok, b, 1.0), 0.0)
@@ -212,7 +235,9 @@ class MortarNode:
         self.axisymmetric = axisymmetric
 
     def _integrals(self, x):
-        """(int N_j g, int N_j s, int N_j) over the overlaps (reference measure)."""
+        """(int Phi_j g, int Phi_j s, int N_j) over the overlaps (reference measure):
+        Phi_j the dual (biorthogonal) function of the slave node on each of its two
+        segments, built on the overlapped part of the segment."""
         X = self.X
         geo = X if self.linear else x
         C, D = geo[3::2], geo[4::2]  # (M, 2) candidate master segments
@@ -248,12 +273,15 @@ class MortarNode:
                 Xm = XC[:, None, :] + eta[..., None] * (XD - XC)[:, None, :]
                 Xs = X[a] + xi[..., None] * (X[b] - X[a])
                 s = (Xs - Xm) @ T0
-            w = 0.5 * length * L0 * nj(xi)
+            w = 0.5 * length * L0
             if self.axisymmetric:
                 w = w * TWO_PI * (X[a, 0] + xi * (X[b, 0] - X[a, 0]))
-            gsum = gsum + jnp.sum(w * g)
-            ssum = ssum + jnp.sum(w * s)
-            wsum = wsum + jnp.sum(w)
+            Nj = nj(xi)
+            No = 1.0 - Nj
+            phi = _dual(Nj, No, w)
+            gsum = gsum + jnp.sum(w * phi * g)
+            ssum = ssum + jnp.sum(w * phi * s)
+            wsum = wsum + jnp.sum(w * Nj)
         return gsum, ssum, wsum
 
     def gap(self, x, geo=None):
@@ -370,11 +398,11 @@ def candidates(patches: Patches, master_edges: np.ndarray) -> np.ndarray:
 
 def end_switches(x: np.ndarray, patches: Patches, master_edges: np.ndarray, tol: float) -> np.ndarray:
     """(nc,) True where the end of the master surface (a node of one master
-    segment only) is, in the configuration ``x``, over the slave node itself, to
-    ``tol`` of a segment (along it) and within one segment length along the
-    normal: there the node's overlapped weight int N_j (N_j = 1 at the crossing),
-    so its weighted gap, has a kink (docs/theory.md §13.7). At the far end of a
-    slave segment N_j vanishes and the weight changes to second order only."""
+    segment only) is, in the configuration ``x``, over the slave node itself or
+    over one of its two neighbours, to ``tol`` of a segment (along it) and within
+    one segment length along the normal: there the overlapped part of one of the
+    node's segments stops growing or starts, and its weight int N_j and its dual
+    function Phi_j, so its weighted gap, have a kink (docs/theory.md §13.7)."""
     ids, count = np.unique(master_edges, return_counts=True)
     ends = ids[count == 1]
     nc = patches.nodes.shape[0]
@@ -383,8 +411,8 @@ def end_switches(x: np.ndarray, patches: Patches, master_edges: np.ndarray, tol:
         return out
     segs, mask = _slave_segments(np.asarray(x, float), patches)
     pts = np.stack([ends, ends], axis=1)  # degenerate "segments" at the end nodes
-    for e, at in ((0, 1.0), (1, 0.0)):  # the slave node is the end of (prev, j), the start of (j, next)
+    for e in (0, 1):  # the segments (prev, j) and (j, next), each at both of its ends
         xc, _, gc, _, _ = _projections(segs[e], x, pts)
-        on = (np.abs(xc - at) <= tol) & (np.abs(gc) <= 1.0)
+        on = ((np.abs(xc) <= tol) | (np.abs(xc - 1.0) <= tol)) & (np.abs(gc) <= 1.0)
         out |= np.any(on, axis=1) & mask[e]
     return out

@@ -123,11 +123,12 @@ def grid(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 24, rati
 
 
 def touch_offset(xs1, xs2, R1, R2) -> float:
-    """How far the upper body is lowered so that the two discretised arcs touch
-    at the lower surface's central node: 1.5 x the mortar gap of that node (the
-    N_0-weighted average of the gap between the two polygons, > 0 since the arcs
-    curve away from each other), i.e. an interference of half that gap, a few
-    1e-3 of the cell size. Without it no node would be closed at the start and
+    """How far the upper body is lowered so that the two discretised arcs are in
+    contact at the lower surface's central node: 1.5 x the N_0-weighted average of
+    the gap between the two polygons over that node's segments (> 0 since the arcs
+    curve away from each other; the node's dual-weighted gap, its nodal gap, is 0
+    when they touch), a few 1e-3 of the cell size. Without it no node would be
+    in compression at the start and
     the upper body, held only by the contact, would float (singular first
     tangent). It is computed from the *nominal* radii: a fixed part of the mesh."""
     j = len(xs1) // 2

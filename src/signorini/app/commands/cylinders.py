@@ -152,8 +152,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
         timing.mark("sensitivities")
         inside = np.abs(c["x"]) < 0.9 * an["b"]
 
-        def both(s):
-            cc = s.contact()
+        def both(s):  # the rows and signs of contact.csv, as the DDM's columns
+            cc = _lower(s, [])
             return np.concatenate([cc["p_N"][inside], cc["p_T"][inside]])
         ddm_fd = {n: max_rel_diff(np.concatenate([c[f"dp_N_d{n}"][inside], c[f"dp_T_d{n}"][inside]]),
                                   finite_difference(pb, n, both, steps=steps, options=options,
