@@ -394,9 +394,9 @@ def test_cylinders_cli_coarse_start(tmp_path, monkeypatch):
     import json
 
     from signorini.app.cli import main
-    from signorini.problems import hertz
+    from signorini.app.commands import cylinders as command
 
-    monkeypatch.setattr(hertz, "MIN_GUIDED_DOFS", 0)
+    monkeypatch.setattr(command, "MIN_GUIDED_DOFS", 0)
     args = ["cylinders", "--set", "mu=0.3", "--set", "Q=0.015", "--steps", "4", "--no-fd", "-q"]
     assert main(args + ["--out", str(tmp_path / "g")]) == 0
     assert main(args + ["--out", str(tmp_path / "u"), "--no-coarse-start"]) == 0

@@ -207,13 +207,17 @@ def coarse_levels(refine: int, n_fine: int = 24, coarsest: int = COARSEST) -> li
 MIN_GUIDED_DOFS = 50_000
 
 
-def coarse_start_skipped(pb, coarse_start: bool) -> str | None:
-    """Why a CLI run does not start from coarser meshes (None: it does)."""
+def coarse_start_skipped(pb, coarse_start: bool, min_dofs: int | None = None) -> str | None:
+    """Why a CLI run does not start from coarser meshes (None: it does); ``min_dofs``:
+    the size below which the coarse levels cost more than they save (default
+    :data:`MIN_GUIDED_DOFS`)."""
     if not coarse_start:
         return "off"
+    if min_dofs is None:
+        min_dofs = MIN_GUIDED_DOFS
     n = model_for(pb).n_dof
-    if n < MIN_GUIDED_DOFS:
-        return f"not used below {MIN_GUIDED_DOFS} DOFs ({n} here): compiling it costs more than it saves"
+    if n < min_dofs:
+        return f"not used below {min_dofs} DOFs ({n} here): it costs more than it saves"
     return None
 
 
