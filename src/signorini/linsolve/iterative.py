@@ -394,12 +394,11 @@ class AMGKrylov(LinearSolver):
             bj = b[:, j]
             nb = float(np.linalg.norm(bj))
             xj = x[:, j]
-            guess = None if x0 is None else _start(K, bj, x0[:, j])
-            if guess is None:
+            start = None if x0 is None else _start(K, bj, x0[:, j])
+            if start is None:
                 r = bj.copy()
             else:
-                xj[:] = guess
-                r = bj - K @ xj
+                xj[:], r = start
             if q:  # the part of b in C's span, from the recycled directions
                 a_ = C[:, :q].T @ r
                 xj += U[:, :q] @ a_
@@ -488,8 +487,9 @@ class AMGKrylov(LinearSolver):
                                     for j in range(b.shape[1])])
         if not np.any(b):
             return np.zeros_like(b)
+        start = _start(K, b, x0)
         x, its = self._fgmres(K, apply, b, self.rtol if rtol is None else rtol,
-                              x0=_start(K, b, x0))
+                              x0=None if start is None else start[0])
         self.iterations.append(its)
         return x
 
@@ -527,11 +527,12 @@ class AMGKrylov(LinearSolver):
 
 
 def _start(K, b, x0):
-    """``x0`` if it is finite and leaves a smaller residual ||b - K x0|| than zero
+    """(x0, b - K x0) if ``x0`` is finite and leaves a smaller residual than zero
     does (||b||), else None: a guess that is no better than none is not used."""
     if x0 is None:
         return None
     x0 = np.asarray(x0, dtype=float)
     if not np.all(np.isfinite(x0)):
         return None
-    return x0 if np.linalg.norm(b - K @ x0) < np.linalg.norm(b) else None
+    r = b - K @ x0
+    return (x0, r) if np.linalg.norm(r) < np.linalg.norm(b) else None
