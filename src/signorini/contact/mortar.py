@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jax import jnp
+from .._jax import jax, jnp
 from ..errors import InputError
 from .methods import AugmentedLagrangian, Contact
 
@@ -233,11 +233,30 @@ class MortarNode:
         self.mmask = master_mask
         self.linear = linear
         self.axisymmetric = axisymmetric
+        self._affine = None
+        if linear:
+            # linearised kinematics: the integrals are affine in the positions x (the
+            # overlaps, normals and dual functions are the reference ones), so they are
+            # their values at X and their gradients there, computed once per node; the
+            # residual and its tangent then differentiate a dot product instead of the
+            # overlap geometry once per patch coordinate (docs/theory.md §13.2)
+            (g0, s0, ws), vjp = jax.vjp(self._overlap_integrals, X)
+            ga, = vjp((jnp.ones(()), jnp.zeros(()), jnp.zeros(())))
+            sa, = vjp((jnp.zeros(()), jnp.ones(()), jnp.zeros(())))
+            self._affine = (g0, s0, ws, ga, sa)
 
     def _integrals(self, x):
         """(int Phi_j g, int Phi_j s, int N_j) over the overlaps (reference measure):
         Phi_j the dual (biorthogonal) function of the slave node on each of its two
         segments, built on the overlapped part of the segment."""
+        if self._affine is None:
+            return self._overlap_integrals(x)
+        g0, s0, ws, ga, sa = self._affine
+        d = x - self.X
+        return g0 + jnp.sum(ga * d), s0 + jnp.sum(sa * d), ws
+
+    def _overlap_integrals(self, x):
+        """:meth:`_integrals` from the overlaps, Gauss point by Gauss point."""
         X = self.X
         geo = X if self.linear else x
         C, D = geo[3::2], geo[4::2]  # (M, 2) candidate master segments

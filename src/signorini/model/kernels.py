@@ -28,6 +28,8 @@ The DOF layout lives in :mod:`signorini.model.dofs`.
 
 from __future__ import annotations
 
+import functools
+
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -166,11 +168,16 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         self._update_contact = program(
             lambda w, p, t, s: self.update(w, p, t, s, "contact"), "update_contact")
         # the whole-mesh programs (built only when called: a large mesh never builds them)
-        self._local = program(self._local_impl, "local")
+        # (a linear body's: the contact and external forces alone, its element forces
+        # are K_e u_e in NumPy, faster than XLA's scatter over the whole mesh)
+        self._local = program(functools.partial(self._local_impl, elements=not self.linear_elements),
+                              "local")
         # friction: the case flags and the tangent in one program: one dispatch per Newton
         # evaluation instead of two, which matters on small meshes, where a dispatch
         # costs more than the work (docs/theory.md §10.2)
-        self._local_cases = program(self._local_cases_impl, "local_cases")
+        self._local_cases = program(functools.partial(self._local_cases_impl,
+                                                      elements=not self.linear_elements),
+                                    "local_cases")
         self._residual_whole = program(self.residual, "residual")
         self._cases_whole = program(self.cases, "cases")
         self._fields_whole = program(self.contact_fields, "fields", static_argnums=3)
@@ -392,21 +399,16 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             R = R.at[s.dofs.ravel()].add(rc.ravel())
         return R
 
-    def _local_impl(self, w, params, t, state_n=None, cases=None, Ke=None, elements=True):
+    def _local_impl(self, w, params, t, state_n=None, cases=None, elements=True):
         """Residual and the Jacobian blocks of every element and contact node, by a
-        vmap over the whole mesh (``Ke``: the constant element stiffness of a linear
-        body, if known; it is then not returned again, the blocks start with the
-        contact blocks: as an output, Ke would be copied out of the compiled program
-        on every call, a copy as large as the whole element stiffness;
-        ``elements=False``: the contact and external forces only)."""
+        vmap over the whole mesh (``elements=False``: the contact and external forces
+        and the contact blocks only)."""
         R = -self.external_forces(self.reference(params), params, t)
         blocks = []
-        if elements and Ke is None:
+        if elements:
             re, Ke_new, _ = self._elements(w, params, state_n, tangent=True)
             blocks = [Ke_new]
             R = R.at[self.edofs.ravel()].add(re.ravel())
-        elif elements:
-            R = R + self.linear_forces(Ke, w)
         for i, s, x, lam, A, geo, cp, Xs in self._surface_inputs(w, params, t):
             h = self._node_history(i, state_n, cases)
             method = s.contact.method
@@ -431,10 +433,11 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         the tangent of every cell at u = 0 by a vmap over the whole mesh."""
         return self._elements(jnp.zeros(self.n_dof), params, None, True)[1]
 
-    def _local_cases_impl(self, w, params, t, state_n, Ke=None):
+    def _local_cases_impl(self, w, params, t, state_n, elements=True):
         """:meth:`_local_impl` with the friction case flags computed first, once, and
         passed to every node as data (docs/theory.md §3.4)."""
-        return self._local_impl(w, params, t, state_n, self.cases(w, params, t, state_n), Ke)
+        return self._local_impl(w, params, t, state_n, self.cases(w, params, t, state_n),
+                                elements)
 
     @staticmethod
     def without_material(state):
@@ -445,13 +448,15 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     def local_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
         if not self.by_kind:
-            Ke = self.element_stiffness(params, device=True) if self.linear_elements else None
             if self.has_contact_history:
-                R, blocks = self._local_cases(w, params, t, state_n, Ke)
+                R, blocks = self._local_cases(w, params, t, state_n)
             else:
-                R, blocks = self._local(w, params, t, state_n, None, Ke)
-            head = [] if Ke is None else [self.element_stiffness(params)]
-            return np.asarray(R), head + [np.asarray(b) for b in blocks]
+                R, blocks = self._local(w, params, t, state_n)
+            R = np.asarray(R)
+            if not self.linear_elements:
+                return R, [np.asarray(b) for b in blocks]
+            Ke = self.element_stiffness(params)
+            return self.linear_forces_np(Ke, w) + R, [Ke] + [np.asarray(b) for b in blocks]
         # the cells' programs first: they run while the contact part is computed
         pending = None if self.linear_elements else self.element_tangents_start(w, params, state_n)
         R, blocks = self.contact_tangents(w, params, t, state_n)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jax import jnp, to_device
+from .._jax import to_device
 
 
 class ModelStiffness:
@@ -32,19 +32,16 @@ class ModelStiffness:
         names = params if self._element_names is None else self._element_names
         return tuple(sorted((k, float(params[k])) for k in names))
 
-    def element_stiffness(self, params, device: bool = False):
+    def element_stiffness(self, params):
         """Ke (n_cells, 8, 8) of a linear body, computed once per values of the
         element parameters (E, nu, shape parameters may differ between solves;
-        :meth:`element_key`): a NumPy array, or with ``device`` the same values as
-        a JAX array (kept too: the whole-mesh programs take it on every call)."""
+        :meth:`element_key`)."""
         key = self.element_key(params)
         if self._ke is None or self._ke[0] != key:
             Ke = self.compiled.stiffness(params)
             Ke.flags.writeable = False  # unchanged: the assembly keeps its scatter
-            self._ke = [key, Ke, None]
-        if device and self._ke[2] is None:
-            self._ke[2] = to_device(self._ke[1])
-        return self._ke[2] if device else self._ke[1]
+            self._ke = (key, Ke)
+        return self._ke[1]
 
     def _element_stiffness_eager(self, params) -> np.ndarray:
         """K_e (n_cells, 8, 8) of a linear body (the tangent at u = 0): a whole-mesh
@@ -52,12 +49,6 @@ class ModelStiffness:
         if self.by_kind:
             return self._element_stiffness_cells(params)
         return np.array(self._stiffness_whole(params))
-
-    def linear_forces(self, Ke, w):
-        """(n_dof,) internal forces sum_e K_e u_e of a linear body with element
-        stiffness Ke (n_cells, 8, 8) (traceable)."""
-        re = jnp.einsum("eij,ej->ei", Ke, w[self.edofs])
-        return jnp.zeros(self.n_dof).at[self.edofs.ravel()].add(re.ravel())
 
     def analysis_tangent(self, params):
         """Free-free tangent at the reference state with every contact node closed
