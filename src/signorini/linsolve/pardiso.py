@@ -42,6 +42,9 @@ class _Handle:
         self.indptr = np.ascontiguousarray(indptr, dtype=np.int32)
         self.indices = np.ascontiguousarray(indices, dtype=np.int32)
         self.analysed = False
+        # weighted matching (and its scaling) in the analysis: until an analysis with it
+        # has failed a tangent (general LU only; see Pardiso.factorize's refactor)
+        self.matching = True
         self.threads = 0  # MKL's thread count when the pattern was analysed
         self.generation = 0
         self.a = None  # values of the current factorisation (kept alive while it is used)
@@ -133,7 +136,7 @@ class _Handle:
         ip[7] = 0  # iterative refinement: MKL's default (2 steps when pivots were perturbed)
         ip[9] = 13 if self.mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
         ip[10] = 1  # scaling
-        ip[12] = 1  # weighted matching (needed for the zero diagonal of active multipliers)
+        ip[12] = 1 if self.matching else 0  # weighted matching (zero diagonals of multipliers)
         ip[17] = -1  # report the factor's non-zeros
         ip[20] = 1  # Bunch-Kaufman pivoting (symmetric indefinite)
         ip[34] = 1  # zero-based indices
@@ -294,7 +297,13 @@ class Pardiso(LinearSolver):
         def refactor():
             # The kept analysis carries the scaling and matching of older values; pivots
             # it no longer suits are perturbed, which refinement normally repairs. When it
-            # does not, analyse these values afresh (docs/theory.md §10).
+            # does not, analyse these values afresh (docs/theory.md §10.1); a general LU
+            # without the weighted matching, whose row permutation suits one active set
+            # only: its static pivot order, from the pattern alone, perturbs the pivot of
+            # every closed multiplier, and one refinement step repairs that whatever the
+            # active set, where a matching of these values would fail again later
+            if mtype == 11:
+                h.matching = False
             h.analyse(a)
             h.a = a
             h.call(22, a)
