@@ -450,6 +450,26 @@ def test_analysis_with_every_contact_node_closed_avoids_perturbed_pivots():
     assert plain.perturbed_pivots > 0 and m.analysis_tangent == orig
 
 
+@needs_pardiso
+def test_a_general_lu_that_stalled_is_analysed_again_without_matching():
+    """Two cylinders with friction (general LU, mortar multipliers): the analysis of
+    the first tangent, with its weighted matching, stalls refinement once the
+    contact closes; the pattern is then analysed without matching, after which every
+    solve is repaired by refinement whatever the active set: one re-analysis in the
+    whole path (eight with the matching kept), and the solution is SuperLU's."""
+    from signorini.problems.cylinders import cylinders_problem
+
+    pb = cylinders_problem({"mu": 0.3, "Q": 0.015})
+    s = Pardiso()
+    sol = sg.solve(pb, steps=20, wrt=["R1"], solver=s)
+    assert s.reanalyses == 1 and s.analyses == 2
+    assert [h.matching for h in s._handles.values()] == [False]
+    ref = sg.solve(pb, steps=20, wrt=["R1"], solver="superlu")
+    assert sol.newton_iterations == ref.newton_iterations
+    assert _rel(sol.increments[-1].w, ref.increments[-1].w) < 1e-10
+    assert _rel(sol.w_sensitivity("R1"), ref.w_sensitivity("R1")) < 1e-8
+
+
 def test_symmetry_figures_of_a_block_array_are_kept_only_while_it_lives():
     """The symmetry test keeps the figures of a read-only block array; another array
     (even one that reuses a freed array's address) and a writable one are tested
