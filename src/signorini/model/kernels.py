@@ -168,16 +168,18 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         self._update_contact = program(
             lambda w, p, t, s: self.update(w, p, t, s, "contact"), "update_contact")
         # the whole-mesh programs (built only when called: a large mesh never builds them)
-        # (a linear body's: the contact and external forces alone, its element forces
-        # are K_e u_e in NumPy, faster than XLA's scatter over the whole mesh)
-        self._local = program(functools.partial(self._local_impl, elements=not self.linear_elements),
-                              "local")
+        # (a linear body's without the elements: the contact and external forces alone,
+        # its element forces are K_e u_e in NumPy, faster than XLA's scatter over the
+        # whole mesh)
+        self._local = program(self._local_impl, "local")
+        self._local_contact = program(functools.partial(self._local_impl, elements=False),
+                                      "local_contact")
         # friction: the case flags and the tangent in one program: one dispatch per Newton
         # evaluation instead of two, which matters on small meshes, where a dispatch
         # costs more than the work (docs/theory.md §10.2)
-        self._local_cases = program(functools.partial(self._local_cases_impl,
-                                                      elements=not self.linear_elements),
-                                    "local_cases")
+        self._local_cases = program(self._local_cases_impl, "local_cases")
+        self._local_cases_contact = program(
+            functools.partial(self._local_cases_impl, elements=False), "local_cases_contact")
         self._residual_whole = program(self.residual, "residual")
         self._cases_whole = program(self.cases, "cases")
         self._fields_whole = program(self.contact_fields, "fields", static_argnums=3)
@@ -448,10 +450,12 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     def local_tangents(self, w, params, t, state_n=None):
         """(R (n_dof,), [Ke (ne, 8, 8), Kc_s (nc_s, k, k), ...]) as NumPy arrays."""
         if not self.by_kind:
+            lin = self.linear_elements
             if self.has_contact_history:
-                R, blocks = self._local_cases(w, params, t, state_n)
+                R, blocks = (self._local_cases_contact if lin else self._local_cases)(
+                    w, params, t, state_n)
             else:
-                R, blocks = self._local(w, params, t, state_n)
+                R, blocks = (self._local_contact if lin else self._local)(w, params, t, state_n)
             R = np.asarray(R)
             if not self.linear_elements:
                 return R, [np.asarray(b) for b in blocks]
