@@ -457,7 +457,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
             else:
                 R, blocks = (self._local_contact if lin else self._local)(w, params, t, state_n)
             R = np.asarray(R)
-            if not self.linear_elements:
+            if not lin:
                 return R, [np.asarray(b) for b in blocks]
             Ke = self.element_stiffness(params)
             return self.linear_forces_np(Ke, w) + R, [Ke] + [np.asarray(b) for b in blocks]

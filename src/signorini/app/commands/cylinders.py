@@ -30,8 +30,7 @@ NAME = "cylinders"
 RTOL = 1e-10
 #: the size from which the load path starts from coarser meshes: with the dual mortar
 #: weights Newton needs few iterations from rest, and the coarse levels pay only from
-#: about here (solve times with the programs kept, 20 increments with friction: 62,626
-#: DOFs 10.6 s guided against 9.6 s from rest; 106,350 DOFs 18.3 s against 20.4 s)
+#: about here (measured solve times in docs/cli.md, `signorini cylinders`)
 MIN_GUIDED_DOFS = 100_000
 #: increments with friction (P over the first half, Q over the second), and without
 STEPS_FRICTION, STEPS = 10, 1
