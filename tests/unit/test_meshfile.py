@@ -8,7 +8,7 @@ import pytest
 
 import signorini as sg
 from signorini.fem.mesh import signed_jacobians
-from signorini.fem.meshfile import read_mesh
+from signorini.fem.meshfile import read_mesh, read_mesh_3d
 
 
 def _write_gmsh(path, flip_cells=False, interior_line=False):
@@ -225,3 +225,94 @@ def test_connected_parts_are_scipys_connected_components():
         for a, b in zip(c, np.roll(c, -1)):
             count[frozenset((a, b))] = count.get(frozenset((a, b)), 0) + 1
     assert {frozenset(x) for x in e.tolist()} == {s for s, v in count.items() if v == 1}
+
+
+# ------------------------------------------------- a mesh of the wrong dimension
+def _wrong_file(tmp_path, kind):
+    """A file of one kind (a 2-D or 3-D mesh, a mesh without body cells, an empty
+    or a non-mesh file); its path."""
+    from signorini.fem.mesh3d import box, tetrahedra
+
+    quads = sg.rectangle(np.linspace(0, 2, 5), np.linspace(0, 1, 3))
+    hexes = box(np.linspace(0, 2, 3), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
+    name, cells, points = {
+        "quad": ("quads.msh", [("quad", quads.cells), ("line", quads.edge_sets["top"])],
+                 np.column_stack([quads.nodes, np.zeros(quads.n_nodes)])),
+        "triangle": ("triangles.msh", [("triangle", np.array([[0, 1, 2]]))], pts[:3]),
+        "planar": ("planar.vtu", [("quad", quads.cells)], quads.nodes),  # x, y only
+        "hexahedron": ("hexahedra.msh", [("hexahedron", hexes.cells)], hexes.nodes),
+        "tetra": ("tetrahedra.vtu", [("tetra", tetrahedra(hexes).cells)], hexes.nodes),
+        "wedge": ("wedge.vtu", [("wedge", np.array([[0, 1, 2, 3, 4, 1]]))], pts),
+        "tetra10": ("tetra10.vtu", [("tetra10", np.array([[0, 1, 2, 3, 4, 0, 1, 2, 3, 4]]))], pts),
+        "line": ("lines.msh", [("line", np.array([[0, 1], [1, 2]]))], pts),
+        "vertex": ("points.msh", [("vertex", np.array([[0], [1]]))], pts),
+        "none": ("no_cells.msh", [], pts),
+    }.get(kind, (None, None, None))
+    if kind == "empty":
+        (tmp_path / "empty.msh").write_text("")
+        return tmp_path / "empty.msh"
+    if kind == "text":
+        (tmp_path / "notes.msh").write_text("a mesh will be here\n")
+        return tmp_path / "notes.msh"
+    path = tmp_path / name
+    fmt = {"file_format": "gmsh22", "binary": False} if name.endswith(".msh") else {}
+    meshio.Mesh(points, cells).write(path, **fmt)
+    return path
+
+
+def _read(kind, path):
+    return read_mesh_3d(path) if kind == "3d" else read_mesh(path, dim=2) if kind == "2d" \
+        else read_mesh(path)
+
+
+WRONG = [
+    # (file, reader: "3d" read_mesh_3d | "2d" read_mesh(dim=2) | "any" read_mesh, fragment, its dim)
+    ("quad", "3d", "a 2-D mesh (cells: 8 quad, 4 line; no volume cells), where a 3-D mesh of "
+                   "hexahedra or tetrahedra is expected; read a 2-D mesh with read_mesh", 2),
+    ("triangle", "3d", "a 2-D mesh (cells: 1 triangle; no volume cells), where a 3-D mesh", 2),
+    ("planar", "3d", "a 2-D mesh (cells: 8 quad; no volume cells)", 2),
+    ("hexahedron", "2d", "a 3-D mesh (cells: 2 hexahedron), where a 2-D mesh of quadrilaterals in "
+                         "the z = 0 plane is expected", 3),
+    ("tetra", "2d", "a 3-D mesh (cells: 12 tetra), where a 2-D mesh", 3),
+    ("wedge", "2d", "a 3-D mesh (cells: 1 wedge)", 3),
+    ("wedge", "any", "no hexahedra or tetrahedra (found ['wedge']); signorini reads 3-D meshes of "
+                     "8-node hexahedra or 4-node tetrahedra", None),
+    ("tetra10", "3d", "no hexahedra or tetrahedra (found ['tetra10'])", None),
+    ("line", "any", "no cells of a body (cells: 2 line); a mesh file needs the cells of a body", None),
+    ("line", "3d", "no cells of a body (cells: 2 line)", None),
+    ("vertex", "2d", "no cells of a body (cells: 2 vertex)", None),
+    ("none", "3d", "no cells at all; a mesh file needs the cells of a body", None),
+    ("empty", "3d", "the mesh file is empty; write the mesh again", None),
+    ("text", "3d", "not a readable mesh file", None),
+]
+
+
+@pytest.mark.parametrize("kind, reader, fragment, dim", WRONG,
+                         ids=[f"{k}-{r}" for k, r, _, _ in WRONG])
+def test_wrong_dimension_or_no_body_is_a_clear_error(tmp_path, capfd, kind, reader, fragment, dim):
+    """A 2-D file given to the 3-D reader, a 3-D file where a 2-D mesh is asked for,
+    a file without the cells of a body, an empty or a non-mesh file: an InputError
+    that names the file, what it holds and what is expected (no IndexError from
+    deep inside the reader, nothing printed by meshio)."""
+    path = _wrong_file(tmp_path, kind)
+    capfd.readouterr()  # what meshio said writing it
+    with pytest.raises(sg.InputError) as err:
+        _read(reader, path)
+    msg = str(err.value)
+    assert msg.startswith(f"{path}: "), msg
+    assert fragment in msg, msg
+    assert getattr(err.value, "dim", None) == dim
+    assert capfd.readouterr() == ("", "")  # meshio's console output is captured
+
+
+@pytest.mark.parametrize("kind, dim, cls", [("quad", 2, "Mesh"), ("planar", 2, "Mesh"),
+                                            ("hexahedron", 3, "Mesh3D"), ("tetra", 3, "Mesh3D")])
+def test_the_right_dimension_reads(tmp_path, kind, dim, cls):
+    """The same files read by the reader of their dimension, and by read_mesh
+    without one."""
+    path = _wrong_file(tmp_path, kind)
+    a = read_mesh_3d(path) if dim == 3 else read_mesh(path, dim=2)
+    b = read_mesh(path)
+    assert type(a).__name__ == type(b).__name__ == cls
+    np.testing.assert_array_equal(a.cells, b.cells)

@@ -421,3 +421,78 @@ def test_bad_mesh_file_and_missing_problem_file(tmp_path):
     (tmp_path / "bin.toml").write_bytes(b"\xff\xfe\x00title")
     with pytest.raises(sg.InputError, match="bin.toml"):
         pf.load(tmp_path / "bin.toml")
+
+
+# ------------------------------------------- [mesh] file of the wrong dimension
+def _mesh_file(tmp_path, kind):
+    """A mesh file the problem-file format does not take; its name."""
+    from signorini.fem.mesh3d import box, tetrahedra
+
+    hexes = box(np.linspace(0, 2, 3), np.linspace(0, 1, 2), np.linspace(-1, 0, 2))
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
+    if kind == "empty":
+        (tmp_path / "body.msh").write_text("")
+        return "body.msh"
+    if kind == "text":
+        (tmp_path / "body.msh").write_text("the mesh goes here\n")
+        return "body.msh"
+    name, cells, points = {
+        "hexahedra": ("body.msh", [("hexahedron", hexes.cells), ("quad", hexes.face_sets["z1"])],
+                      hexes.nodes),
+        "tetrahedra": ("body.vtu", [("tetra", tetrahedra(hexes).cells)], hexes.nodes),
+        "wedges": ("body.vtu", [("wedge", np.array([[0, 1, 2, 3, 4, 1]]))], pts),
+        "lines": ("body.msh", [("line", np.array([[0, 1], [1, 2]]))], pts),
+        "triangles": ("body.msh", [("triangle", np.array([[0, 1, 2]]))], pts[:3]),
+    }[kind]
+    fmt = {"file_format": "gmsh22", "binary": False} if name.endswith(".msh") else {}
+    meshio.Mesh(points, cells).write(tmp_path / name, **fmt)
+    return name
+
+
+NOT_3D = ("problem files take 2-D meshes only (3-D meshes in problem files are not supported "
+          "yet): mesh a plane section of the body, or set up the 3-D problem in Python")
+BAD_MESH_FILES = [
+    # (mesh file, fragments of the message after "<toml>: [mesh] file = '<name>': <path>: ")
+    ("hexahedra", ["a 3-D mesh (cells: 2 hexahedron, 2 quad), where a 2-D mesh of quadrilaterals "
+                   "in the z = 0 plane is expected; " + NOT_3D]),
+    ("tetrahedra", ["a 3-D mesh (cells: 12 tetra)", NOT_3D]),
+    ("wedges", ["a 3-D mesh (cells: 1 wedge)", NOT_3D]),
+    ("lines", ["no cells of a body (cells: 2 line); a mesh file needs the cells of a body"]),
+    ("triangles", ["no quadrilateral cells (found ['triangle']); a 2-D mesh is made of 4-node "
+                   "quadrilaterals (in gmsh: Recombine Surface)"]),
+    ("empty", ["the mesh file is empty"]),
+    ("text", ["not a readable mesh file"]),
+]
+
+
+@pytest.mark.parametrize("kind, fragments", BAD_MESH_FILES, ids=[b[0] for b in BAD_MESH_FILES])
+def test_mesh_file_of_the_wrong_kind(tmp_path, kind, fragments):
+    """A [mesh] file that the format does not take (3-D: not yet; no cells of a
+    body, triangles, empty, not a mesh) is an InputError naming the problem file,
+    the key, the mesh file and what is expected, before anything is solved."""
+    name = _mesh_file(tmp_path, kind)
+    f = _write(tmp_path, re.sub(r"(?s)\[mesh\].*?\n\n", f'[mesh]\nfile = "{name}"\n\n', BLOCK))
+    with pytest.raises(sg.InputError) as err:
+        pf.load(f)
+    msg = str(err.value)
+    assert msg.startswith(f"{f}: [mesh] file = {name!r}: {tmp_path / name}: "), msg
+    for fragment in fragments:
+        assert fragment in msg, msg
+    assert (NOT_3D in msg) == (kind in ("hexahedra", "tetrahedra", "wedges"))
+
+
+@pytest.mark.parametrize("kind", ["hexahedra", "lines"])
+def test_run_command_on_a_3d_or_cell_less_mesh_exits_2(tmp_path, capsys, kind):
+    """``signorini run`` on such a file: exit code 2 and one ``signorini: error:``
+    line with the message, no traceback, no output directory."""
+    from signorini.app.cli import main
+
+    name = _mesh_file(tmp_path, kind)
+    f = _write(tmp_path, re.sub(r"(?s)\[mesh\].*?\n\n", f'[mesh]\nfile = "{name}"\n\n', BLOCK))
+    capsys.readouterr()
+    assert main(["run", str(f), "--out", str(tmp_path / "out"), "-q"]) == 2
+    err = capsys.readouterr().err
+    expected = NOT_3D if kind == "hexahedra" else "no cells of a body (cells: 2 line)"
+    assert err.startswith(f"signorini: error: {f}: [mesh] file = {name!r}: "), err
+    assert expected in err and "Traceback" not in err, err
+    assert not (tmp_path / "out").exists()

@@ -10,6 +10,7 @@ import io as _stdio
 import logging
 import os
 import warnings
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +21,8 @@ from .mesh3d import Mesh3D, cell_jacobians, face_key
 
 log = logging.getLogger("signorini")
 
-_MESH_HINT = ("signorini reads 2-D quadrilateral meshes, e.g. gmsh .msh (in gmsh: Recombine Surface, "
-              "then File > Export as .msh)")
+_MESH_HINT = ("signorini reads 2-D meshes of quadrilaterals and 3-D meshes of hexahedra or tetrahedra, "
+              "e.g. gmsh .msh (in gmsh: Recombine Surface for quadrilaterals, then File > Export as .msh)")
 
 
 def _meshio():
@@ -82,9 +83,13 @@ def _meshio_read(path: Path):
                      f"is a complete mesh in the format of its extension. {_MESH_HINT}")
 
 
-def read_mesh(path) -> "Mesh | Mesh3D":
+def read_mesh(path, dim: int | None = None) -> "Mesh | Mesh3D":
     """Read a Q4 mesh (gmsh .msh or any meshio format) with named sets; a file of
     hexahedra or tetrahedra gives a 3-D mesh (:func:`read_mesh_3d`).
+
+    ``dim`` (2 or 3) asks for a mesh of that dimension: a file of the other one is
+    an error (a file's dimension is that of its cells: 3 if it has volume cells,
+    2 if surface cells and no volume cells), before its cells are checked.
 
     Quadrilateral cells become the mesh; every named physical group of line
     elements (gmsh ``$PhysicalNames``) becomes an edge set (oriented
@@ -99,13 +104,17 @@ def read_mesh(path) -> "Mesh | Mesh3D":
 
     Raises:
         InputError: the file is missing, empty, of an unknown format, not a
-            valid mesh, not planar, without quadrilaterals, or a set is not
-            on the boundary. The message names the file.
+            valid mesh, has no cells of a body (only lines or points), is not of
+            dimension ``dim`` (the error's ``dim`` attribute is then the file's
+            dimension), not planar, without quadrilaterals, or a set is not on the
+            boundary. The message names the file.
     """
 
+    if dim not in (None, 2, 3):
+        raise InputError(f"read_mesh: dim must be 2, 3 or None (either), got {dim!r}")
     path = Path(path)
     m = _meshio_read(path)
-    if {c.type for c in m.cells} & set(_VOLUME):
+    if _dimension(path, m, dim) == 3:
         return _mesh_3d(path, m)
     nodes, cells, used, new = _quad_mesh(path, m)
     names = {int(v[0]): k for k, v in (m.field_data or {}).items()}
@@ -129,14 +138,59 @@ def read_mesh(path) -> "Mesh | Mesh3D":
         raise type(e)(f"{path}: {e}") from None
 
 
+def _cell_dimension(kind: str) -> int:
+    """The topological dimension of a meshio cell type (0 points, 1 lines, 2 faces, 3 volumes)."""
+    known = getattr(getattr(_meshio(), "_mesh", None), "topological_dimension", {})
+    if kind in known:
+        return int(known[kind])
+    name = kind.lower().removeprefix("vtk_lagrange_")
+    for prefix, d in (("vertex", 0), ("line", 1), ("curve", 1), ("triangle", 2), ("quad", 2),
+                      ("polygon", 2), ("tetra", 3), ("hexahedron", 3), ("wedge", 3),
+                      ("pyramid", 3), ("polyhedron", 3)):
+        if name.startswith(prefix):
+            return d
+    return 2  # an unknown kind: reported as an unsupported cell type of a 2-D mesh
+
+
+def _count(m) -> str:
+    """The cells of a meshio mesh, e.g. '12 hexahedron, 8 quad'."""
+    n = Counter()
+    for c in m.cells:
+        n[c.type] += len(c.data)
+    return ", ".join(f"{v} {k}" for k, v in sorted(n.items(), key=lambda kv: -kv[1]))
+
+
+def _dimension(path: Path, m, dim: int | None) -> int:
+    """The dimension of a mesh file (3: volume cells, 2: faces, no volumes), checked
+    against the one asked for (None: either)."""
+    dims = {_cell_dimension(c.type) for c in m.cells if len(c.data)}
+    found = max(dims, default=0)
+    if found < 2:
+        what = f"no cells of a body (cells: {_count(m)})" if dims else "no cells at all"
+        raise InputError(f"{path}: {what}; a mesh file needs the cells of a body: quadrilaterals "
+                         "for a 2-D mesh, hexahedra or tetrahedra for a 3-D one (in gmsh: Mesh > 2D "
+                         "with Recombine Surface, or Mesh > 3D), lines and points only naming sets")
+    if dim is not None and found != dim:
+        if dim == 2:
+            err = InputError(f"{path}: a 3-D mesh (cells: {_count(m)}), where a 2-D mesh of "
+                             "quadrilaterals in the z = 0 plane is expected")
+        else:
+            err = InputError(f"{path}: a 2-D mesh (cells: {_count(m)}; no volume cells), where a 3-D "
+                             "mesh of hexahedra or tetrahedra is expected; read a 2-D mesh with "
+                             "read_mesh, or mesh the volume (in gmsh: Mesh > 3D)")
+        err.dim = found
+        raise err
+    return found
+
+
 def _quad_mesh(path, m):
     """(nodes (n, 2), cells counter-clockwise, used (the file's nodes a quad uses),
     new (file node -> mesh node, -1 for dropped ones)) of a meshio mesh."""
     quads = [c.data for c in m.cells if c.type == "quad"]
     if not quads:
         kinds = sorted({c.type for c in m.cells})
-        raise InputError(f"{path}: no quadrilateral cells (found {kinds}); signorini needs Q4 meshes "
-                         "(in gmsh: Recombine Surface)")
+        raise InputError(f"{path}: no quadrilateral cells (found {kinds}); a 2-D mesh is made of "
+                         "4-node quadrilaterals (in gmsh: Recombine Surface)")
     other = sorted({c.type for c in m.cells} - {"quad", "line", "vertex"})
     if other:
         raise InputError(f"{path}: unsupported cell types {other}; only quad (+ line/vertex sets)")
@@ -145,8 +199,9 @@ def _quad_mesh(path, m):
         raise InputError(f"{path}: points have shape {points.shape}; expected 2-D or 3-D coordinates")
     if points.shape[1] > 2 and np.ptp(points[:, 2]) > 1e-12 * max(np.ptp(points[:, :2]), 1e-300):
         raise InputError(f"{path}: the mesh is not planar in the x-y plane (z varies from "
-                         f"{points[:, 2].min():.6g} to {points[:, 2].max():.6g}); signorini is 2-D, "
-                         "so draw the body in the z = 0 plane")
+                         f"{points[:, 2].min():.6g} to {points[:, 2].max():.6g}); a 2-D mesh lies in the "
+                         "z = 0 plane: draw the body there (a 3-D body is a mesh of its volume: "
+                         "hexahedra or tetrahedra, in gmsh Mesh > 3D)")
     cells = np.concatenate(quads).astype(np.int64)
     # drop nodes that no quad uses and renumber (set data uses the same map)
     used = np.zeros(len(points), bool)
@@ -219,11 +274,11 @@ def read_mesh_3d(path) -> Mesh3D:
     cell are dropped and the rest renumbered in file order.
 
     Raises:
-        InputError: as :func:`read_mesh`; also for mixed or unsupported cells and
-            a face group off the boundary. The message names the file and the set.
+        InputError: as :func:`read_mesh`; also for a 2-D mesh (no volume cells),
+            mixed or unsupported cells and a face group off the boundary. The
+            message names the file and the set.
     """
-    path = Path(path)
-    return _mesh_3d(path, _meshio_read(path))
+    return read_mesh(path, dim=3)
 
 
 def _mesh_3d(path, m) -> Mesh3D:
@@ -233,6 +288,11 @@ def _mesh_3d(path, m) -> Mesh3D:
         raise InputError(f"{path}: the mesh mixes {' and '.join(kinds)}; signorini takes one kind "
                          "of cell per mesh (in gmsh: mesh the volume with one algorithm, e.g. "
                          "all tetrahedra, or recombine every volume into hexahedra)")
+    if not kinds:  # volume cells, none of them hexahedra or tetrahedra
+        raise InputError(f"{path}: no hexahedra or tetrahedra (found {sorted(types)}); signorini "
+                         "reads 3-D meshes of 8-node hexahedra or 4-node tetrahedra, one kind per "
+                         "mesh (in gmsh: mesh order 1; recombine the volume for hexahedra, or do "
+                         "not for tetrahedra)")
     kind = kinds[0]
     face = _VOLUME[kind]
     other = sorted(types - {kind, face, "line", "vertex"})

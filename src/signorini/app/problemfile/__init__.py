@@ -75,7 +75,9 @@ name of a parameter of ``[params]``, which makes it a design variable):
 ``[mesh]`` (required)
     either ``file = "body.msh"`` (relative to the TOML file; read by
     :func:`signorini.fem.meshfile.read_mesh`: gmsh physical groups of lines become edge
-    and node sets, of points node sets, plus ``all``), or
+    and node sets, of points node sets, plus ``all``; a 2-D mesh of quadrilaterals:
+    a 3-D mesh, or a file without quadrilaterals, is an error: 3-D meshes in problem
+    files are not supported yet), or
     ``type = "rectangle"``, ``x = [x0, x1]``, ``y = [y0, y1]`` (numbers),
     ``nx``, ``ny`` (cells, integers >= 1): sets ``left``, ``right``,
     ``bottom``, ``top`` (edges and nodes) and ``all`` (nodes). A parameter

@@ -252,6 +252,12 @@ def _intern(key, make):
     return v
 
 
+#: what a problem file with a 3-D mesh is told (its other tables are 2-D: edge sets, [x, y] vectors)
+_NO_3D = ("; problem files take 2-D meshes only (3-D meshes in problem files are not supported "
+          "yet): mesh a plane section of the body, or set up the 3-D problem in Python "
+          "(signorini.read_mesh reads 3-D meshes of hexahedra or tetrahedra)")
+
+
 def _mesh(rd: _Reader, data) -> tuple[Mesh, dict]:
     where = "[mesh]"
     if not isinstance(data, dict):
@@ -274,9 +280,10 @@ def _mesh(rd: _Reader, data) -> tuple[Mesh, dict]:
             try:
                 with warnings.catch_warnings(record=True) as caught:
                     warnings.simplefilter("always", SignoriniWarning)
-                    mesh = read_mesh(f)
+                    mesh = read_mesh(f, dim=2)
             except InputError as e:
-                raise type(e)(f"{rd.label}: [mesh] file = {name!r}: {e}") from None
+                hint = _NO_3D if getattr(e, "dim", None) == 3 else ""
+                raise type(e)(f"{rd.label}: [mesh] file = {name!r}: {e}{hint}") from None
             return mesh, tuple(str(w.message) for w in caught
                                if issubclass(w.category, SignoriniWarning))
 
