@@ -9,12 +9,17 @@ What signorini compiles is kept between runs under one directory,
 ``$SIGNORINI_CACHE_DIR`` if set (an empty value switches every cache off), else
 ``$XDG_CACHE_HOME/signorini`` (default ``~/.cache/signorini``): JAX's persistent
 compilation cache in ``jax/`` (set up here) and signorini's own compiled
-programs in ``programs/`` (:mod:`signorini._programs`).
+programs in ``programs/`` (:mod:`signorini._programs`). A cache of executables
+is code that runs: the directories are created private (mode 0700), and JAX's
+cache is not set up in a directory that another user owns or can write
+(:func:`cache_path_problem`; :mod:`signorini._programs` says so when it first
+uses the caches, and guards JAX's entries one by one).
 """
 
 from __future__ import annotations
 
 import os
+import stat
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
@@ -38,12 +43,35 @@ def cache_dir() -> str | None:
     return None if root is None else os.path.join(root, "jax")
 
 
+def cache_path_problem(st: os.stat_result) -> str | None:
+    """Why a cache directory or entry with this ``os.stat`` must not be trusted
+    (None: it may be): owned by another user, or writable by the group or others
+    (who could then put their code in it)."""
+    getuid = getattr(os, "getuid", None)
+    if getuid is None:  # no owners to compare (Windows)
+        return None
+    uid = getuid()
+    if st.st_uid != uid:
+        return f"owned by another user (uid {st.st_uid}; this process runs as uid {uid})"
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return f"writable by other users (mode {stat.S_IMODE(st.st_mode):04o})"
+    return None
+
+
+def make_private_dir(path) -> None:
+    """Create ``path`` (and missing parents) if needed, itself with mode 0700."""
+    os.makedirs(path, mode=0o700, exist_ok=True)
+
+
 def _enable_cache() -> None:
     d = cache_dir()
     if d is None:
         return
     try:
-        os.makedirs(d, exist_ok=True)
+        make_private_dir(cache_root())
+        make_private_dir(d)
+        if any(cache_path_problem(os.stat(p)) for p in (cache_root(), d)):
+            return  # not trusted: run without JAX's cache (signorini._programs says why)
     except OSError:  # read-only home: run without the cache
         return
     jax.config.update("jax_compilation_cache_dir", d)

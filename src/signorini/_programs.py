@@ -23,15 +23,29 @@ overwritten, never used. Entries
 are written to a temporary file and renamed into place, so processes that fill
 the cache at once (a sweep's workers) neither see half-written entries nor
 wait on a lock: the last one to finish a program keeps its copy.
+
+A cache of executables is code that runs. An entry is loaded only if it is a
+file of the user running the process that nobody else can write; the cache
+directory (and its ``programs/`` and ``jax/``) only if the same holds for it,
+else nothing is loaded from it nor kept in it. JAX's compilation cache in
+``jax/`` gets the same checks, entry by entry (:func:`guard_jax_cache`), and
+its damaged entries are deleted so that JAX writes them again. Every such
+finding (a damaged entry, one that is not the user's own, a directory others
+can write) is one :class:`~signorini.errors.SignoriniWarning` per cache
+directory and process, naming the directory and what was done, and is listed
+in :data:`WARNINGS` (so in summary.json); the run compiles what it could not
+load, and its results are unaffected.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import hashlib
 import logging
 import os
+import stat
 import pickle
 import platform
 import tempfile
@@ -42,7 +56,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._jax import cache_root, jax
+from ._jax import cache_dir, cache_path_problem, cache_root, jax, make_private_dir
 from .errors import SignoriniWarning
 from jax.core import Tracer
 
@@ -54,19 +68,22 @@ _MAGIC = b"signorini-program\n"
 #: JAX monitoring event of the time spent loading an executable from disk
 LOAD_EVENT = "/signorini/program_load"
 
-#: per process: programs compiled here, loaded from disk, saved, rebuilt, evicted
+#: per process: programs compiled here, loaded from disk, saved, rebuilt (a damaged
+#: entry), ignored (an entry not the user's own), evicted; jax_rebuilt and
+#: jax_ignored: the same for entries of JAX's compilation cache
 STATS: Counter = Counter()
-#: what was wrong with the cache's settings or directory (each said once per process)
+#: what was wrong with the cache's settings, directory or entries (each said once per process)
 WARNINGS: list[str] = []
 
 
-def warn_once(message: str) -> None:
+def warn_once(message: str, once: str | None = None) -> None:
     """A :class:`~signorini.errors.SignoriniWarning` about the cache, issued once
     per process and kept in :data:`WARNINGS` (every command's summary.json lists
     them), and an INFO line of the ``signorini`` log (which the command shows, as
     for every other warning): a cache that cannot be used makes runs slower,
-    never wrong."""
-    if message in WARNINGS:
+    never wrong. ``once``: a beginning of the message; a message that begins so
+    was said already (the first of several findings of one kind)."""
+    if message in WARNINGS or (once is not None and any(w.startswith(once) for w in WARNINGS)):
         return
     WARNINGS.append(message)
     log.info("warning: %s", message)
@@ -81,6 +98,65 @@ def programs_dir() -> Path | None:
 
 def _disabled() -> bool:
     return os.environ.get("SIGNORINI_PROGRAM_CACHE", "1") in ("0", "", "off", "no")
+
+
+# ------------------------------------------------------------ trust
+_CODE = "a cache of compiled programs is code that runs"
+
+
+def directory_problem(d) -> str | None:
+    """Why nothing may be loaded from the cache directory ``d`` (None: it may;
+    also when it does not exist yet, or is no directory: then nothing is found)."""
+    try:
+        st = os.stat(d)
+    except OSError:
+        return None
+    return cache_path_problem(st) if stat.S_ISDIR(st.st_mode) else None
+
+
+def _trusted_dirs(*dirs) -> bool:
+    """Whether every one of ``dirs`` may be loaded from; warns (once per directory)
+    about each one that may not."""
+    ok = True
+    for d in dirs:
+        why = directory_problem(d)
+        if why is None:
+            continue
+        ok = False
+        fix = (f"make it private (chmod go-w {d})" if why.startswith("writable") else
+               "set SIGNORINI_CACHE_DIR to a directory of your own")
+        warn_once(f"the compilation cache {d} is {why}; {_CODE}, so nothing is loaded from it or "
+                  f"kept in it (every run compiles again): {fix}, or switch the caches off with "
+                  "SIGNORINI_CACHE_DIR= (empty)", once=f"the compilation cache {d} is ")
+    return ok
+
+
+def _entry_problem(st: os.stat_result) -> str | None:
+    """Why a cache entry with this (l)stat must not be loaded (None: it may)."""
+    if stat.S_ISLNK(st.st_mode):
+        return "symbolic links"
+    if not stat.S_ISREG(st.st_mode):
+        return "not regular files"
+    return cache_path_problem(st)
+
+
+def _untrusted_entry(path: Path, why: str, what: str) -> None:
+    log.debug("%s %s is %s: not loaded, compiled again", what, path, why)
+    warn_once(f"the compilation cache {path.parent} holds entries that are {why} (the first: "
+              f"{path.name}); {_CODE}, so they were ignored (not loaded), compiled again and "
+              "replaced by entries of your own; if others can write to the cache, set "
+              "SIGNORINI_CACHE_DIR to a directory of your own",
+              once=f"the compilation cache {path.parent} holds entries")
+
+
+def _damaged_entry(path: Path, reason, what: str) -> None:
+    reason = " ".join(str(reason).split())
+    reason = reason if len(reason) <= 160 else reason[:157] + "..."
+    log.debug("%s %s is unusable (%s): compiled again", what, path, reason)
+    warn_once(f"the compilation cache {path.parent} had damaged entries (the first: {path.name}: "
+              f"{reason}); they were ignored, compiled again and replaced, and the results are "
+              "unaffected (signorini cache --clear empties the cache)",
+              once=f"the compilation cache {path.parent} had damaged entries")
 
 
 @functools.cache
@@ -205,6 +281,10 @@ class Program:
         key = self._key()
         if key is None or d is None or _disabled():
             return None
+        jax_dir = cache_dir()
+        _trusted_dirs(*([] if jax_dir is None else [jax_dir]))  # said here: JAX's own cache is silent
+        if not _trusted_dirs(d.parent, d):
+            return None  # not loaded from, not kept: compiled in memory
         text = "\n".join((str(FORMAT), key, self.name, repr(sig), code_version(), _platform()))
         return d / (hashlib.blake2b(text.encode(), digest_size=20).hexdigest() + ".bin")
 
@@ -241,10 +321,28 @@ class Program:
 
     def _load(self, path: Path):
         start = time.time()
-        try:
-            blob = path.read_bytes()
-        except OSError:
+        try:  # the checks and the read on one open file: what is checked is what is read
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except FileNotFoundError:
             return None  # not there (the usual miss)
+        except OSError as e:
+            if e.errno == errno.ELOOP:  # O_NOFOLLOW met a symbolic link
+                STATS["ignored"] += 1
+                _untrusted_entry(path, "symbolic links", f"kept program {self.name}")
+            else:
+                log.debug("kept program %s at %s cannot be read (%s)", self.name, path, e)
+            return None
+        with os.fdopen(fd, "rb") as f:
+            why = _entry_problem(os.fstat(f.fileno()))
+            if why is not None:
+                STATS["ignored"] += 1
+                _untrusted_entry(path, why, f"kept program {self.name}")
+                return None
+            try:
+                blob = f.read()
+            except OSError as e:
+                log.debug("kept program %s at %s cannot be read (%s)", self.name, path, e)
+                return None
         try:
             magic, header, digest, body = blob.split(b"\n", 3)
             if magic + b"\n" != _MAGIC or header + b"\n" != self._header():
@@ -257,8 +355,7 @@ class Program:
             c = serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
         except Exception as e:  # noqa: BLE001  (any bad entry is rebuilt, never used)
             STATS["rebuilt"] += 1
-            log.info("kept program %s at %s is unusable (%s); compiling it again",
-                     self.name, path, e)
+            _damaged_entry(path, e, f"kept program {self.name}")
             return None
         STATS["loaded"] += 1
         try:
@@ -277,7 +374,8 @@ class Program:
                 log.debug("program %s (%.0f MB) is too large to keep", self.name, len(body) / 2**20)
                 return
             digest = hashlib.blake2b(body, digest_size=32).hexdigest().encode()
-            path.parent.mkdir(parents=True, exist_ok=True)
+            make_private_dir(path.parent.parent)
+            make_private_dir(path.parent)
             fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".bin")
             try:
                 with os.fdopen(fd, "wb") as f:
@@ -332,3 +430,121 @@ def _evict(d: Path, keep: Path) -> None:
                 STATS["evicted"] += 1
             except OSError:
                 pass
+
+
+# ------------------------------------------------------------ JAX's compilation cache
+#: how JAX names the file of a key in its cache directory (read from JAX when guarded)
+_JAX_SUFFIX = "-cache"
+
+
+def _jax_entry(cache_key: str) -> Path | None:
+    """The file of a key in JAX's compilation cache (None: no cache directory)."""
+    d = getattr(jax.config, "jax_compilation_cache_dir", None)
+    return None if not d else Path(d) / f"{cache_key}{_JAX_SUFFIX}"
+
+
+def _jax_dirs(entry: Path) -> tuple:
+    """The directories whose trust an entry of JAX's cache depends on: its own and,
+    when it is signorini's ``jax/``, the cache directory above it."""
+    root = cache_root()
+    up = (entry.parent.parent,) if root is not None and entry.parent.parent == Path(root) else ()
+    return up + (entry.parent,)
+
+
+def _discard(entry: Path) -> None:
+    """Delete an entry of JAX's cache that was not used: JAX writes no entry over an
+    existing one, so the program it compiles instead is kept only once it is gone."""
+    try:
+        entry.unlink()
+    except FileNotFoundError:
+        pass
+    except OSError as e:
+        log.debug("could not delete %s (%s): it stays unused", entry, e)
+
+
+def _jax_get(get, should_raise):
+    @functools.wraps(get)
+    def guarded(cache_key, *args, **kwargs):
+        entry = _jax_entry(cache_key)
+        if entry is None:
+            return get(cache_key, *args, **kwargs)
+        if not _trusted_dirs(*_jax_dirs(entry)):
+            return None, None  # nothing loaded from there: compiled
+        try:
+            st = os.lstat(entry)
+        except OSError:
+            return get(cache_key, *args, **kwargs)  # a miss (JAX finds nothing either)
+        why = _entry_problem(st)
+        if why is not None:
+            STATS["jax_ignored"] += 1
+            _untrusted_entry(entry, why, "JAX cache entry")
+            _discard(entry)
+            return None, None
+        try:
+            return get(cache_key, *args, **kwargs)
+        except Exception as e:  # noqa: BLE001  (JAX would warn and compile; we say it once and rebuild)
+            if should_raise(e):
+                raise
+            STATS["jax_rebuilt"] += 1
+            _damaged_entry(entry, f"{type(e).__name__}: {e}", "JAX cache entry")
+            _discard(entry)
+            return None, None
+
+    guarded._signorini_guard = True
+    return guarded
+
+
+def _jax_put(put, should_raise):
+    @functools.wraps(put)
+    def guarded(cache_key, *args, **kwargs):
+        entry = _jax_entry(cache_key)
+        if entry is not None and not _trusted_dirs(*_jax_dirs(entry)):
+            return None  # nothing kept where it would not be loaded from
+        try:
+            put(cache_key, *args, **kwargs)
+        except Exception as e:  # noqa: BLE001  (a cache that cannot be written is only slower)
+            if should_raise(e):
+                raise
+            where = entry.parent if entry is not None else "JAX's compilation cache"
+            reason = e.strerror if isinstance(e, OSError) and e.strerror else f"{type(e).__name__}: {e}"
+            warn_once(f"compiled programs cannot be kept in {where} ({reason}): every run compiles "
+                      "them again; set SIGNORINI_CACHE_DIR to a writable directory (or to an empty "
+                      "value to switch the caches off)", once=f"compiled programs cannot be kept in {where}")
+            return None
+        if entry is not None:  # JAX writes with the umask's mode: the entry is made private
+            with contextlib.suppress(OSError):
+                if os.lstat(entry).st_uid == getattr(os, "getuid", lambda: -1)():
+                    os.chmod(entry, 0o600)
+        return None
+
+    guarded._signorini_guard = True
+    return guarded
+
+
+def guard_jax_cache() -> bool:
+    """Route JAX's persistent compilation cache through the checks of this module:
+    an entry that is not the user's own (or that others can write) is not loaded,
+    a damaged one is deleted and compiled again, each said as one
+    :class:`~signorini.errors.SignoriniWarning` per directory (not JAX's own
+    ``UserWarning`` on every run), and the entries JAX writes are made private.
+    Idempotent; False where this JAX's internals differ (its own behaviour stays)."""
+    global _JAX_SUFFIX
+    try:  # optional: JAX's private cache modules; without them JAX's own handling stays
+        from jax._src import compilation_cache as cc  # noqa: PLC0415  (optional: see above)
+        from jax._src import compiler  # noqa: PLC0415  (optional: see above)
+        from jax._src import lru_cache  # noqa: PLC0415  (optional: see above)
+
+        get, put = cc.get_executable_and_time, cc.put_executable_and_time
+        should_raise = compiler._should_raise_persistent_cache_error
+        _JAX_SUFFIX = lru_cache._CACHE_SUFFIX
+    except (ImportError, AttributeError) as e:
+        log.debug("JAX's compilation cache is used unguarded (%s)", e)
+        return False
+    if not getattr(get, "_signorini_guard", False):
+        cc.get_executable_and_time = _jax_get(get, should_raise)
+    if not getattr(put, "_signorini_guard", False):
+        cc.put_executable_and_time = _jax_put(put, should_raise)
+    return True
+
+
+guard_jax_cache()

@@ -31,9 +31,11 @@ SCRIPT = textwrap.dedent("""
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
-    """An empty cache directory for this test; every model built afresh."""
+    """An empty cache directory for this test; every model built afresh; the
+    process's cache warnings as they were before it (restored after)."""
     monkeypatch.setenv("SIGNORINI_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv("SIGNORINI_PROGRAM_CACHE", raising=False)
+    monkeypatch.setattr(_programs, "WARNINGS", [])
     stepping._MODELS.clear()
     yield tmp_path / "programs"
     stepping._MODELS.clear()
@@ -44,7 +46,7 @@ def _solve():
     before = dict(_programs.STATS)
     sol = sg.solve(hertz.hertz_problem(n_fine=8, size=8), steps=2, wrt=["R", "E"])
     counts = {k: _programs.STATS[k] - before.get(k, 0)
-              for k in ("compiled", "loaded", "rebuilt", "saved", "evicted")}
+              for k in ("compiled", "loaded", "rebuilt", "ignored", "saved", "evicted")}
     return sol, counts
 
 
@@ -287,3 +289,202 @@ def test_frictionless_switch_fields_come_from_the_fields_program(monkeypatch):
     for k in ("gap", "p_N", "stick_margin"):
         np.testing.assert_array_equal(np.asarray(got[k]), np.asarray(ref[k]))
     assert np.all(np.isinf(got["stick_margin"])) and np.asarray(ref["p_N"]).max() > 0
+
+
+# ------------------------------------------------ damaged and untrusted entries
+def _solve_said(cache_dir):
+    """_solve, with the warnings that name a directory of the cache (any category:
+    JAX's own UserWarnings too)."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sol, counts = _solve()
+    said = [w for w in caught if str(cache_dir.parent) in str(w.message)]
+    return sol, counts, said
+
+
+def _only_cache_warning(said, fragment):
+    """The one warning said about the cache: a SignoriniWarning with ``fragment``,
+    the same text in _programs.WARNINGS (and so in summary.json)."""
+    from signorini.errors import SignoriniWarning
+
+    assert len(said) == 1, [str(w.message) for w in said]
+    assert said[0].category is SignoriniWarning
+    msg = str(said[0].message)
+    assert fragment in msg, msg
+    assert _programs.WARNINGS == [msg]
+    return msg
+
+
+def test_damaged_entries_are_one_warning_in_the_summary(cache, tmp_path):
+    """Entries damaged in every way (truncated, overwritten with junk, emptied) are
+    rebuilt, as before, and said once, as a SignoriniWarning naming the cache
+    directory and what was done, which summary.json lists; then the rebuilt
+    entries load without a word."""
+    from signorini.app.runner import write_summary_json
+
+    first, c1 = _solve()
+    files = sorted(cache.glob("*.bin"))
+    for k, f in enumerate(files):
+        f.write_bytes([f.read_bytes()[:200], b"junk\n" * 3, b""][k % 3])
+    again, c2, said = _solve_said(cache)
+    assert c2["rebuilt"] == len(files) and c2["loaded"] == 0 and c2["saved"] == len(files)
+    _same(first, again)
+    msg = _only_cache_warning(said, f"the compilation cache {cache} had damaged entries (the first: ")
+    assert "they were ignored, compiled again and replaced, and the results are unaffected" in msg
+    out = tmp_path / "out"
+    out.mkdir()
+    summary = write_summary_json(out, {"warnings": ["from the solve"]})
+    assert summary["warnings"] == ["from the solve", msg]
+    _programs.WARNINGS.clear()
+    _, c3, said = _solve_said(cache)
+    assert c3["loaded"] == c1["compiled"] and c3["compiled"] == 0 and not said
+
+
+@pytest.mark.parametrize("how", ["group-writable", "others-writable", "another owner", "symlink"])
+def test_entries_not_your_own_are_not_loaded(cache, tmp_path, how):
+    """An entry that someone else owns or can write (or a symbolic link) is a program
+    someone else could have put there: not loaded, compiled again and replaced by
+    a private entry of the user's own; said once, in the summary."""
+    _, c1 = _solve()
+    files = sorted(cache.glob("*.bin"))
+    for f in files:
+        if how == "group-writable":
+            f.chmod(0o660)
+        elif how == "others-writable":
+            f.chmod(0o606)
+        elif how == "another owner":
+            if os.geteuid() != 0:
+                pytest.skip("giving a file to another user needs root")
+            os.chown(f, os.getuid() + 1000, -1)
+        else:
+            target = tmp_path / "elsewhere" / f.name
+            target.parent.mkdir(exist_ok=True)
+            f.rename(target)
+            f.symlink_to(target)
+    _, c2, said = _solve_said(cache)
+    assert c2["ignored"] == len(files) and c2["loaded"] == 0 and c2["compiled"] == c1["compiled"]
+    why = {"group-writable": "writable by other users (mode 0660)",
+           "others-writable": "writable by other users (mode 0606)",
+           "another owner": f"owned by another user (uid {os.getuid() + 1000}; this process runs as "
+                            f"uid {os.getuid()})",
+           "symlink": "symbolic links"}[how]
+    _only_cache_warning(said, f"the compilation cache {cache} holds entries that are {why} (the "
+                              "first: ")
+    for f in files:  # replaced: regular files of the user's own that only they can write
+        st = os.lstat(f)
+        assert st.st_uid == os.getuid() and oct(st.st_mode) == oct(0o100600), (f, oct(st.st_mode))
+    _, c3, said = _solve_said(cache)
+    assert c3["loaded"] == c1["compiled"] and c3["ignored"] == 0 and not said
+
+
+@pytest.mark.parametrize("where, mode", [("programs", 0o777), ("programs", 0o720), ("root", 0o707),
+                                         ("owner", None)])
+def test_a_cache_directory_others_can_write_is_not_used(cache, monkeypatch, capsys, where, mode):
+    """A cache directory (SIGNORINI_CACHE_DIR or its programs/) that another user can
+    write or owns: nothing is loaded from it or written to it; said once, with what
+    to do; `signorini cache` shows it as not used."""
+    from signorini.app.cli import main
+
+    _, c1 = _solve()
+    root = cache.parent
+    if where == "owner":  # the process runs as another user than the one who made the cache
+        uid = os.getuid()
+        monkeypatch.setattr(os, "getuid", lambda: uid + 1000)
+        bad, why = root, f"owned by another user (uid {uid}; this process runs as uid {uid + 1000})"
+    else:
+        bad = cache if where == "programs" else root
+        bad.chmod(mode)
+        why = f"writable by other users (mode {mode:04o})"
+    before = {f: f.stat().st_mtime_ns for f in cache.glob("*.bin")}
+    _, c2, said = _solve_said(cache)
+    assert c2["loaded"] == 0 and c2["saved"] == 0 and c2["rebuilt"] == c2["ignored"] == 0
+    assert c2["compiled"] == c1["compiled"]
+    assert {f: f.stat().st_mtime_ns for f in cache.glob("*.bin")} == before  # nothing written
+    mine = [w for w in said if f"the compilation cache {bad} is " in str(w.message)]
+    assert len(mine) == 1, [str(w.message) for w in said]
+    msg = str(mine[0].message)
+    assert f"the compilation cache {bad} is {why}; a cache of compiled programs is code that " \
+           "runs, so nothing is loaded from it or kept in it" in msg, msg
+    assert (f"chmod go-w {bad}" in msg) == (where != "owner") and msg in _programs.WARNINGS
+    capsys.readouterr()
+    assert main(["cache"]) == 0
+    out = capsys.readouterr().out
+    assert f"signorini programs: {cache}: {len(before)} file(s)" in out
+    assert f"MB (not used: {bad} is {why})" in out.splitlines()[0], out
+    if where != "owner":
+        bad.chmod(0o700)
+
+
+def test_a_jax_directory_others_can_write_is_said_and_programs_still_load(cache):
+    """JAX's part of the cache (jax/) writable by others is said (JAX's cache is not
+    set up there), and signorini's own programs, in a private directory, still load."""
+    _, c1 = _solve()
+    jax_dir = cache.parent / "jax"
+    jax_dir.mkdir(exist_ok=True)
+    jax_dir.chmod(0o777)
+    _, c2, said = _solve_said(cache)
+    assert c2["loaded"] == c1["compiled"] and c2["compiled"] == 0
+    _only_cache_warning(said, f"the compilation cache {jax_dir} is writable by other users "
+                              "(mode 0777)")
+    assert _programs.directory_problem(cache) is None
+
+
+JAX_SCRIPT = textwrap.dedent("""
+    import json, os, sys, warnings
+    os.umask(0o002)  # a umask that leaves new files group-writable: the entries are made private
+    warnings.simplefilter("always")
+    import signorini
+    from signorini import _programs
+    from signorini._jax import jax, jnp
+    hits = []
+    jax.monitoring.register_event_listener(
+        lambda event, **_: hits.append(event) if event == "/jax/compilation_cache/cache_hits" else None)
+    value = jax.jit(lambda x: jnp.sin(x) * jnp.cos(x) + 2.0)(0.5)
+    print(json.dumps({"value": float(value), "hits": len(hits), "warnings": _programs.WARNINGS,
+                      "stats": dict(_programs.STATS)}))
+""")
+
+
+def test_jax_compilation_cache_entries_damaged_or_not_private(tmp_path):
+    """JAX's compilation cache (jax/) in fresh processes: its entries are private
+    whatever the umask; a damaged entry is not JAX's UserWarning on the console
+    but one SignoriniWarning naming the directory, kept in _programs.WARNINGS, and
+    the entry is written again; an entry others can write is not loaded, but
+    replaced; a sound private entry is loaded."""
+    import json
+
+    env = {**os.environ, "SIGNORINI_CACHE_DIR": str(tmp_path)}
+    jax_dir = tmp_path / "jax"
+
+    def run():
+        r = subprocess.run([sys.executable, "-c", JAX_SCRIPT], env=env, capture_output=True,
+                           text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-2000:]
+        assert "UserWarning" not in r.stderr and "Error reading" not in r.stderr, r.stderr
+        return json.loads(r.stdout.strip().splitlines()[-1])
+
+    first = run()
+    entries = sorted(jax_dir.glob("*-cache"))
+    assert entries and first["hits"] == 0 and first["warnings"] == []
+    assert all(os.stat(e).st_mode & 0o077 == 0 for e in entries), [oct(os.stat(e).st_mode) for e in entries]
+    for e in entries:
+        e.write_bytes(b"junk")
+    damaged = run()
+    assert damaged["value"] == first["value"] and damaged["hits"] == 0
+    assert damaged["stats"].get("jax_rebuilt") == len(entries)
+    [msg] = damaged["warnings"]
+    assert msg.startswith(f"the compilation cache {jax_dir} had damaged entries (the first: "), msg
+    assert "they were ignored, compiled again and replaced" in msg
+    assert all(e.stat().st_size > 4 for e in entries)  # written again
+    for e in entries:
+        e.chmod(0o666)
+    untrusted = run()
+    assert untrusted["hits"] == 0 and untrusted["stats"].get("jax_ignored") == len(entries)
+    [msg] = untrusted["warnings"]
+    assert msg.startswith(f"the compilation cache {jax_dir} holds entries that are writable by "
+                          "other users (mode 0666)"), msg
+    assert all(os.stat(e).st_mode & 0o077 == 0 for e in entries)
+    sound = run()
+    assert sound["hits"] >= 1 and sound["warnings"] == [] and sound["value"] == first["value"]

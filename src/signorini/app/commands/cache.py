@@ -21,7 +21,10 @@ def add_parser(sub) -> None:
                     "$SIGNORINI_CACHE_DIR (default $XDG_CACHE_HOME/signorini, i.e. "
                     "~/.cache/signorini); SIGNORINI_CACHE_DIR= (empty) switches them off. A stale "
                     "or damaged entry is detected and compiled again, never used: clearing is "
-                    "only needed to free disk space.")
+                    "only needed to free disk space. A cache of executables is code: an entry is "
+                    "loaded only if it is yours and nobody else can write it, and a cache "
+                    "directory another user owns or can write is not used at all (a warning "
+                    "says so, also in summary.json).")
     c.add_argument("--clear", action="store_true", help="delete every cached program")
     verbosity_options(c)
 
@@ -46,5 +49,14 @@ def execute(args) -> int:
             shutil.rmtree(d, ignore_errors=True)
             print(f"{what}: {d}: removed {n} file(s), {size / 2**20:.1f} MB")
         else:
-            print(f"{what}: {d}: {n} file(s), {size / 2**20:.1f} MB")
+            print(f"{what}: {d}: {n} file(s), {size / 2**20:.1f} MB{_untrusted(d)}")
     return 0
+
+
+def _untrusted(d: Path | None) -> str:
+    """'' or why the directory (or the cache directory above it) is not used."""
+    for p in (() if d is None else (d.parent, d)):
+        why = _programs.directory_problem(p)
+        if why is not None:
+            return f" (not used: {p} is {why})"
+    return ""
