@@ -43,7 +43,9 @@ binds it to a model before a solve.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -337,14 +339,15 @@ class AMGKrylov(LinearSolver):
         if modes is not None:
             B[st.u_global] = modes(B[st.u_global])
         aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
-        ml = pyamg.smoothed_aggregation_solver(
-            full, B=B, max_coarse=self.MAX_COARSE, coarse_solver="splu",
-            aggregate=[("predefined", {"AggOp": a}) for a in aggregates],
-            max_levels=len(aggregates) + 1, improve_candidates=None,
-            # the prolongator smoothed with A's strong couplings only (pyamg's strength,
-            # theta 0.1): sparser coarse levels, a setup half as long
-            strength=("symmetric", {"theta": self.FILTER}),
-            smooth=("jacobi", {"omega": 4.0 / 3.0, "filter_entries": True}))
+        with _fixed_random_start():
+            ml = pyamg.smoothed_aggregation_solver(
+                full, B=B, max_coarse=self.MAX_COARSE, coarse_solver="splu",
+                aggregate=[("predefined", {"AggOp": a}) for a in aggregates],
+                max_levels=len(aggregates) + 1, improve_candidates=None,
+                # the prolongator smoothed with A's strong couplings only (pyamg's
+                # strength, theta 0.1): sparser coarse levels, a setup half as long
+                strength=("symmetric", {"theta": self.FILTER}),
+                smooth=("jacobi", {"omega": 4.0 / 3.0, "filter_entries": True}))
         cycle = ChebyshevCycle(ml)
         del ml
         u_full = np.zeros(N)
@@ -524,6 +527,34 @@ class AMGKrylov(LinearSolver):
                     f"residual {rtol:g} in {spent + its} iterations (reached {rel:.1e}); use a "
                     "direct solver (solver='pardiso' or 'superlu'), or a larger max_iterations")
         return x, its
+
+
+_RANDOM = threading.Lock()
+
+
+@contextlib.contextmanager
+def _fixed_random_start():
+    """NumPy's global random generator seeded for the duration, its state restored
+    after.
+
+    pyamg's Jacobi smoothing of the prolongator divides by an estimate of the
+    spectral radius of D^-1 A from a few Arnoldi steps that start from
+    ``np.random.rand`` (pyamg.util.linalg.approximate_spectral_radius, to 1 %).
+    Unseeded, the prolongators, and with them every iteration count and the last
+    digits of the solutions, would depend on how much of the generator the process
+    had drawn before (earlier solves, anyone's ``np.random``): the same solve takes
+    one or two iterations more or fewer from one draw to the next. Seeded, a
+    hierarchy is a function of its matrix alone; restored, the caller's stream is
+    as if the solver had drawn nothing. The lock keeps two threads' setups from
+    seeding and drawing from the one generator at once (a thread that draws from it
+    outside a setup meanwhile still moves the start)."""
+    with _RANDOM:
+        state = np.random.get_state()
+        np.random.seed(0)
+        try:
+            yield
+        finally:
+            np.random.set_state(state)
 
 
 def _start(K, b, x0):
