@@ -119,7 +119,7 @@ def test_size_guard_uses_available_memory(monkeypatch):
     monkeypatch.setattr(resources, "available_memory", lambda: 0.3 * resources.GB)
     with pytest.raises(ResourceError) as e:
         hertz.hertz_problem(n_fine=4, size=6)
-    ours(e, "force_size=True", "more than the")
+    ours(e, "force_size=True", "more than 85 % of the", "largest that fits")
     hertz.hertz_problem(n_fine=4, size=6, force_size=True)  # insisting works
 
 

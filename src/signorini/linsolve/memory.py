@@ -18,19 +18,80 @@ from .select import get_solver
 log = logging.getLogger("signorini")
 
 GB = 1024.0**3
+#: the share of the available memory a run may be estimated to need: the models are
+#: fitted within about 20 %, and a run estimated just below what is available can
+#: still exhaust it (the ironing problem at refine 2, estimated at 22 GB, passed
+#: 18 GB within minutes on a 22 GB machine)
+HEADROOM = 0.85
 
 
-def estimated_peak_memory(n_dof: int, solver: str = "superlu") -> float:
+#: fitted peak-memory models, GB = a + b n^e for n unknowns (docs/benchmarks.md):
+#: per solver and dimension
+_MODELS = {
+    # 2-D: the Hertz benchmarks, 5k to 1.06M DOFs (symmetric and LU alike)
+    ("pardiso", 2): (0.4, 6.2e-6, 1.0),
+    # 3-D: the 3-D Hertz benchmarks, 68k to 258k DOFs (1.55, 3.23, 6.21 GB): the
+    # factors' fill grows like n^(4/3) with nested dissection; n^1.25 fits them and
+    # extrapolates to the ~40 GB of the 1.09M-DOF tangent
+    ("pardiso", 3): (0.4, 1.0e-6, 1.25),
+    # SciPy's SuperLU in 3-D has not been run beyond 20k DOFs: PARDISO's fill times
+    # the 2.4x that SuperLU needs over PARDISO in 2-D at 225k DOFs
+    ("superlu", 3): (0.5, 2.4e-6, 1.25),
+    # AMG-preconditioned GMRES (the hierarchy, the Krylov spaces, the condensed
+    # matrix): linear, 1.18 GB at 68k to 13.6 GB at 1.09M DOFs in 3-D
+    ("amg", 2): (0.5, 1.2e-5, 1.0),
+    ("amg", 3): (0.5, 1.2e-5, 1.0),
+}
+
+
+def _solver_name(solver) -> str:
+    """``auto`` -> the fastest installed direct solver; a solver object -> its name."""
+    if solver is None or solver == "auto":
+        return get_solver("auto").name
+    return str(getattr(solver, "name", solver))
+
+
+def estimated_peak_memory(n_dof: int, solver="superlu", dim: int = 2, extra: float = 0.0) -> float:
     """Estimated peak resident memory in bytes of a solve with ``n_dof`` unknowns.
 
-    ``superlu``: 0.5 GB + 1.1e-5 GB per DOF times (n_dof / 2e5)^0.25, fitted as
-    described above. ``pardiso``: 0.4 GB + 6.2e-6 GB per DOF, linear, fitted to
-    the Hertz benchmarks with MKL PARDISO (5k to 0.9M DOFs symmetric, and the
-    frictional Hertz at 1.06M DOFs, LU)."""
+    Args:
+        n_dof: unknowns (displacements and multipliers).
+        solver: ``pardiso``, ``superlu``, ``umfpack``, ``amg``, ``auto`` (the fastest
+            installed) or a solver object.
+        dim: 2 (plane strain, axisymmetric) or 3: a sparse LU of a 3-D mesh fills
+            in much faster than one of a 2-D mesh.
+        extra: bytes the problem needs beyond the model (e.g. the candidate
+            partners of a finite-sliding contact pair), added as they are.
+
+    2-D ``superlu`` (and ``umfpack``): 0.5 GB + 1.1e-5 GB per DOF times
+    (n_dof / 2e5)^0.25, fitted to the Hertz benchmark with SuperLU (5k to 225k
+    DOFs). 2-D ``pardiso``: 0.4 GB + 6.2e-6 GB per DOF, fitted to the Hertz
+    benchmarks with MKL PARDISO (5k to 0.9M DOFs symmetric, the frictional
+    Hertz at 1.06M DOFs, LU). 3-D and ``amg``: see :data:`_MODELS`. Estimates,
+    printed as such."""
     n = max(int(n_dof), 1)
-    if solver == "pardiso":
-        return (0.4 + 6.2e-6 * n) * GB
-    return (0.5 + 1.1e-5 * n * (n / 2.0e5) ** 0.25) * GB
+    name = _solver_name(solver)
+    d = 3 if int(dim) == 3 else 2
+    if name not in ("pardiso", "amg") and d == 2:
+        return (0.5 + 1.1e-5 * n * (n / 2.0e5) ** 0.25) * GB + float(extra)
+    a, b, e = _MODELS.get((name, d), _MODELS[("superlu", 3)] if d == 3 else _MODELS[("pardiso", 2)])
+    return (a + b * float(n) ** e) * GB + float(extra)
+
+
+def largest_fitting(have: float, solver="superlu", dim: int = 2, extra=None) -> int:
+    """The largest number of unknowns whose estimated peak memory (with
+    ``extra(n)`` bytes on top, if given) stays within ``have`` bytes (0 if none
+    does)."""
+    fits = lambda n: estimated_peak_memory(n, solver, dim, extra(n) if extra else 0.0) <= have  # noqa: E731
+    if not fits(1):
+        return 0
+    lo, hi = 1, 2
+    while fits(hi) and hi < 10**13:
+        lo, hi = hi, 2 * hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    return lo
 
 
 def available_memory() -> float | None:
@@ -48,29 +109,48 @@ def available_memory() -> float | None:
         return None
 
 
-def check_size(n_dof: int, *, force: bool = False, what: str = "this run") -> float:
-    """Log the estimated size of a run and refuse it if it cannot fit in memory.
+def check_size(n_dof: int, *, force: bool = False, what: str = "this run", dim: int = 2,
+               solver="auto", extra: float = 0.0, hint: str = "a coarser mesh (smaller --refine)",
+               quiet: bool = False) -> float:
+    """The size guard of every command and problem builder: log the estimated size
+    of a run and refuse it if it cannot fit in memory, before the mesh is built.
 
     Args:
-        n_dof: number of unknowns (displacements + multipliers).
+        n_dof: number of unknowns (displacements + multipliers); a lower bound is
+            enough to refuse a run before its grid lines are built.
         force: run anyway (the caller insists; a warning is logged).
         what: name of the run in the messages.
+        dim: 2 or 3 (see :func:`estimated_peak_memory`).
+        solver: the linear solver of the run (name or object; ``auto``: the
+            fastest installed direct solver).
+        extra: bytes beyond the model's (see :func:`estimated_peak_memory`), or
+            a function of the number of unknowns giving them (how they grow with
+            the mesh, for the largest size that fits).
+        hint: what to change, in the refusal (e.g. the command's mesh option).
+        quiet: log nothing unless the run is refused (a preliminary check).
 
     Returns:
         The estimated peak memory in bytes.
 
     Raises:
-        ResourceError: the estimate exceeds the available memory and ``force`` is False.
+        ResourceError: the estimate exceeds :data:`HEADROOM` of the available
+            memory and ``force`` is False; its message gives the estimate, what is
+            available and the largest number of unknowns that fits.
     """
-    need = estimated_peak_memory(n_dof, get_solver("auto").name)
+    name = _solver_name(solver)
+    grow = extra if callable(extra) else (lambda n: float(extra) * n / max(int(n_dof), 1))
+    need = estimated_peak_memory(n_dof, name, dim, grow(n_dof))
     have = available_memory()
-    log.info("%s: %d unknowns, estimated peak memory %.2g GB (%s available)", what, n_dof,
-             need / GB, "unknown" if have is None else f"{have / GB:.3g} GB")
-    if have is not None and need > have:
-        msg = (f"{what} has {n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of memory, "
-               f"more than the {have / GB:.3g} GB available")
+    if not quiet:
+        log.info("%s: %d unknowns, estimated peak memory %.2g GB with %s (%s available)", what,
+                 n_dof, need / GB, name, "unknown" if have is None else f"{have / GB:.3g} GB")
+    if have is not None and need > HEADROOM * have:
+        most = largest_fitting(HEADROOM * have, name, dim, grow)
+        msg = (f"{what} has {n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of memory "
+               f"with the {name} solver, more than {100 * HEADROOM:.0f} % of the {have / GB:.3g} GB "
+               f"available (the largest that fits is about {most:,} unknowns)")
         if not force:
-            raise ResourceError(msg + "; use a coarser mesh (smaller --refine) or insist with "
-                                "--force-size (API: force_size=True)")
+            raise ResourceError(msg + f"; use {hint}, or insist with --force-size "
+                                "(API: force_size=True)")
         log.warning("warning: %s; running anyway (forced)", msg)
     return need

@@ -48,7 +48,8 @@ from ..fem.loads import Fixed, Pressure, Ramp, Traction
 from ..fem.mesh import Mesh, graded_coordinates, merge, rectangle
 from ..materials import Bodies, LinearElastic
 from ..model.problem import Problem
-from .hertz import check_mesh_options
+from ..linsolve import check_size
+from .hertz import check_fine_zone, check_mesh_options
 
 DEFAULTS = {"R1": 1.0, "R2": 1.0, "E1": 100.0, "E2": 100.0, "nu1": 0.3, "nu2": 0.3, "P": 0.1,
             "mu": 0.0, "Q": 0.0}
@@ -158,7 +159,8 @@ def _body(xs, eta, R, W, side):
 
 def cylinders_problem(params: dict | None = None, *, refine: int = 0, n_fine: int = 24,
                       ratio: float = 2 / 3, nominal: dict | None = None,
-                      kinematics: str = "auto") -> Problem:
+                      kinematics: str = "auto", force_size: bool = False,
+                      solver="auto") -> Problem:
     """Build the two-cylinder problem.
 
     Args:
@@ -170,6 +172,8 @@ def cylinders_problem(params: dict | None = None, *, refine: int = 0, n_fine: in
         nominal: the values that size the grid (default :data:`DEFAULTS`).
         kinematics: of the contact pair ("auto": linearised, the bodies being
             linear elastic).
+        force_size: build the meshes even if they are estimated not to fit in
+            memory with ``solver`` (the run's linear solver).
 
     With mu > 0 the problem has friction (Coulomb) and the load path P then Q;
     the radii are shape parameters (their meshes at the run's values, the
@@ -182,7 +186,15 @@ def cylinders_problem(params: dict | None = None, *, refine: int = 0, n_fine: in
         raise InputError(f"cylinders problem: Q = {values['Q']} must stay below mu P = "
                          f"{values['mu'] * values['P']} (Mindlin's partial slip; at Q >= mu P the "
                          "upper body slides away)")
+    check_mesh_options(refine, n_fine, 15.0, 1.5)
+    what = "the two-cylinder mesh"
+    hint = "a coarser mesh (smaller --refine or --n-fine)"
+    # the lower body's fine zone on one side of the contact: a lower bound
+    check_fine_zone(refine, n_fine, what=what, force=force_size, solver=solver, hint=hint)
     xs1, xs2, e1, e2, b0, W = grid(nominal, refine=refine, n_fine=n_fine, ratio=ratio)
+    multipliers = (2 if values["mu"] > 0 else 1) * len(xs1)
+    check_size(2 * (len(xs1) * len(e1) + len(xs2) * len(e2)) + multipliers, force=force_size,
+               what=what, solver=solver, hint=hint)
     if W > 0.999 * min(values["R1"], values["R2"]):
         raise InputError("cylinders problem: the radii are too small for the grid (built for the "
                          "nominal radii); pass nominal= with radii near those of the run")

@@ -70,8 +70,19 @@ def parse_mesh(text: str) -> tuple[int, int]:
     return nr, nz
 
 
+def check_mesh_size(mesh: tuple[int, int], lateral_fraction: float = 0.5, *, force: bool = False,
+                    solver="auto") -> None:
+    """The size guard of the forging mesh (n_r, n_z), before it is built
+    (:func:`signorini.linsolve.check_size`)."""
+    nr, nz = mesh
+    n_contact = (nr + 1) + int(np.ceil(lateral_fraction * nz))
+    check_size(2 * (nr + 1) * (nz + 1) + 2 * n_contact, force=force, what="the forging mesh",
+               solver=solver, hint="a coarser mesh (smaller --mesh)")
+
+
 def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 20),
-                    lateral_fraction: float = 0.5, formulation=FBAR, force_size: bool = False) -> Problem:
+                    lateral_fraction: float = 0.5, formulation=FBAR, force_size: bool = False,
+                    solver="auto") -> Problem:
     """The forging half model (parameters phi0..phi4, mu, sigma_y, H, E, nu, stroke, eps, eps_t).
 
     The mesh is built at the *nominal* shape (:data:`DEFAULTS`, the cylinder);
@@ -84,6 +95,7 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
         lateral_fraction: upper fraction of the lateral surface that may touch the die.
         formulation: element formulation (F-bar by default; ``element.STANDARD`` locks).
         force_size: build the mesh even if it is estimated not to fit in memory.
+        solver: the run's linear solver, for that estimate.
     """
     values = checked_values("forging problem", DEFAULTS, params, extra=("eps", "eps_t"), tag="forging")
     nr, nz = mesh
@@ -95,8 +107,7 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
     if not 0 < lateral_fraction <= 1:
         raise InputError(f"lateral_fraction must lie in (0, 1], got {lateral_fraction}")
     check_shape([values[k] for k in SHAPE])
-    n_contact = (nr + 1) + int(np.ceil(lateral_fraction * nz))
-    check_size(2 * (nr + 1) * (nz + 1) + 2 * n_contact, force=force_size, what="the forging mesh")
+    check_mesh_size(mesh, lateral_fraction, force=force_size, solver=solver)
 
     unit = rectangle(np.linspace(0.0, 1.0, nr + 1), np.linspace(0.0, H0, nz + 1))
     s, Z = unit.nodes[:, 0], unit.nodes[:, 1]

@@ -66,9 +66,12 @@ def section(xi, eta):
 
 
 def forging3d_problem(params: dict | None = None, *, mesh: tuple[int, int] = (6, 6),
-                      lateral_fraction: float = 0.5, force_size: bool = False) -> Problem:
+                      lateral_fraction: float = 0.5, force_size: bool = False,
+                      solver="auto") -> Problem:
     """The billet's eighth (parameters square, round, bulge, mu, sigma_y, H, E, nu,
-    stroke, eps, eps_t); ``mesh`` = (cells across the section's half, cells in z)."""
+    stroke, eps, eps_t); ``mesh`` = (cells across the section's half, cells in z);
+    ``force_size``: build it even if it is estimated not to fit in memory with
+    ``solver`` (the run's linear solver)."""
     values = checked_values("3-D forging problem", DEFAULTS, params, extra=("eps", "eps_t"),
                             tag="forging3d")
     ns, nz = mesh
@@ -82,7 +85,8 @@ def forging3d_problem(params: dict | None = None, *, mesh: tuple[int, int] = (6,
     if values["round"] + min(values["bulge"], 0.0) <= 0 or values["square"] < 0:
         raise InputError(f"the preform needs round + bulge > 0 and square >= 0, got round = "
                          f"{values['round']}, bulge = {values['bulge']}, square = {values['square']}")
-    check_size(3 * (ns + 1) ** 2 * (nz + 1), force=force_size, what="the 3-D forging mesh")
+    check_size(3 * (ns + 1) ** 2 * (nz + 1), force=force_size, what="the 3-D forging mesh", dim=3,
+               solver=solver, hint="a coarser mesh (smaller --mesh)")
 
     unit = box(np.linspace(0, 1, ns + 1), np.linspace(0, 1, ns + 1), np.linspace(0, H0, nz + 1))
     xi, eta, z = unit.nodes.T

@@ -75,6 +75,19 @@ def check_mesh_options(refine, n_fine, size: float, zone: float) -> None:
                          f"got zone = {zone} a0, block = {size} a0")
 
 
+def check_fine_zone(refine: int, n_fine: int, *, dim: int = 2, bodies: int = 1,
+                    what: str = "the mesh", force: bool = False, solver="auto",
+                    hint: str = "a coarser mesh (smaller --refine or --n-fine)") -> None:
+    """The size guard before a graded mesh's grid lines are built: its fine zone
+    alone (n_fine 2^refine cells across, 2/3 of that deep; in 3-D as wide in the
+    second direction; once per body) is a lower bound of the mesh, refused at once
+    if it cannot fit (:func:`signorini.linsolve.check_size`); building the grid
+    lines of a mesh that large would itself exhaust the time or the memory."""
+    nf = int(n_fine) * 2 ** min(int(refine), 64)
+    nodes = bodies * (nf + 1) ** (dim - 1) * (max(round(nf * 2 / 3), 1) + 1)
+    check_size(dim * nodes, dim=dim, force=force, what=what, solver=solver, hint=hint, quiet=True)
+
+
 def mesh_coordinates(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 24,
                      size: float = 20.0, zone: float = 1.5):
     """Graded grid lines (xs, ys) of the half model and the nominal half-width a0.
@@ -107,7 +120,7 @@ def mesh_coordinates(nominal: dict | None = None, *, refine: int = 0, n_fine: in
 def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = "al",
                   finite_strain: bool = False, n_fine: int = 24, size: float = 20.0,
                   zone: float = 1.5, nominal: dict | None = None, force_size: bool = False,
-                  multipliers_per_node: int | None = None) -> Problem:
+                  multipliers_per_node: int | None = None, solver="auto") -> Problem:
     """Build the Hertz half model.
 
     Args:
@@ -122,6 +135,7 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
             parameter values in ``params`` never change the mesh.
         force_size: build the mesh even if it is estimated not to fit in memory.
         multipliers_per_node: for the size estimate (default: that of ``method``).
+        solver: the linear solver the run will use, for the size estimate.
 
     The default ``eps`` is E0 / h with the nominal E0 and the contact cell size h
     (a number, so that ``E`` changes nothing else).
@@ -133,9 +147,12 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
         raise InputError(f"unknown contact method {method!r}; use 'al' or 'penalty'")
     nom = dict(DEFAULTS)
     nom.update(nominal or {})
+    check_mesh_options(refine, n_fine, size, zone)
+    check_fine_zone(refine, n_fine, what="the Hertz mesh", force=force_size, solver=solver)
     xs, ys, a0 = mesh_coordinates(nom, refine=refine, n_fine=n_fine, size=size, zone=zone)
     m = multipliers_per_node if multipliers_per_node is not None else (1 if method == "al" else 0)
-    check_size(2 * len(xs) * len(ys) + m * len(xs), force=force_size, what="the Hertz mesh")
+    check_size(2 * len(xs) * len(ys) + m * len(xs), force=force_size, what="the Hertz mesh",
+               solver=solver)
     mesh = rectangle(xs, ys)
     H = -ys[0]
     h = xs[1] - xs[0]

@@ -35,7 +35,7 @@ from ..fem.mesh3d import box
 from ..linsolve import check_size
 from ..materials import LinearElastic
 from ..model.problem import Problem
-from .hertz import check_mesh_options
+from .hertz import check_fine_zone, check_mesh_options
 
 DEFAULTS = {"E": 100.0, "nu": 0.3, "P": 0.1, "R": 1.0, "mu": 0.0}
 
@@ -85,21 +85,30 @@ def grid(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 8, size:
 
 def hertz3d_problem(params: dict | None = None, *, refine: int = 0, n_fine: int = 8,
                     size: float = 12.0, zone: float = 1.5, axisymmetric: bool = False,
-                    force_size: bool = False) -> Problem:
+                    force_size: bool = False, solver="auto") -> Problem:
     """The sphere-on-block quarter model (or, ``axisymmetric``, its axisymmetric
     twin). ``eps`` defaults to E0 / h (nominal E0, contact cell size h) and
-    ``eps_t`` to ``eps``; ``mu > 0`` makes the contact Coulomb friction."""
+    ``eps_t`` to ``eps``; ``mu > 0`` makes the contact Coulomb friction.
+    ``force_size``: build the mesh even if it is estimated not to fit in memory
+    with ``solver`` (the run's linear solver)."""
     values = checked_values("3-D Hertz problem", DEFAULTS, params, extra=("eps", "eps_t"),
                             positive=("E", "P", "R"))
     if values["mu"] < 0:
         raise InputError(f"the friction coefficient must be >= 0, got mu={values['mu']}")
     LinearElastic().check(values)
+    dim = 2 if axisymmetric else 3
+    what = "the axisymmetric Hertz mesh" if axisymmetric else "the 3-D Hertz mesh"
+    hint = "a coarser mesh (smaller --refine or --n-fine)" + (
+        "" if axisymmetric or getattr(solver, "name", solver) == "amg" else
+        ", the iterative solver (--solver amg), which needs less memory in 3-D")
+    check_mesh_options(refine, n_fine, size, zone)
+    check_fine_zone(refine, n_fine, dim=dim, what=what, force=force_size, solver=solver, hint=hint)
     xs, zs, _ = grid(refine=refine, n_fine=n_fine, size=size, zone=zone)
     friction = values["mu"] > 0
     m = 1 + (2 if friction else 0) if not axisymmetric else (2 if friction else 1)
     n_dof = (2 * len(xs) * len(zs) + m * len(xs)) if axisymmetric else \
         (3 * len(xs) ** 2 * len(zs) + m * len(xs) ** 2)
-    check_size(n_dof, force=force_size, what="the 3-D Hertz mesh")
+    check_size(n_dof, force=force_size, what=what, dim=dim, solver=solver, hint=hint)
     h = float(xs[1] - xs[0])
     values.setdefault("eps", DEFAULTS["E"] / h)
     values.setdefault("eps_t", values["eps"])

@@ -36,14 +36,15 @@ BLOCK = 80.0
 
 def hertz_friction_problem(params: dict | None = None, *, refine: int = 0, n_fine: int = 24,
                            size: float = BLOCK, zone: float = 1.5, finite_strain: bool = False,
-                           force_size: bool = False):
+                           force_size: bool = False, solver="auto"):
     """The frictional Hertz half model (parameters E, nu, P, R, mu, eps, eps_t, bump).
 
     The mesh is sized from the nominal values :data:`DEFAULTS` (a0 = Hertz
     half-width at P3), never from ``params``. ``eps`` defaults to E0 / h
     (h = contact cell size, E0 nominal) and ``eps_t`` to ``eps``. Mesh and
     material arguments as in :func:`signorini.problems.hertz.hertz_problem`
-    (``finite_strain``: neo-Hookean block with finite contact kinematics).
+    (``finite_strain``: neo-Hookean block with finite contact kinematics;
+    ``solver``: the run's linear solver, for the size guard).
     """
     values = checked_values("frictional Hertz problem", DEFAULTS, params, extra=("eps", "eps_t", "bump"))
     if not (isinstance(values["mu"], (int, float)) and values["mu"] >= 0 and np.isfinite(values["mu"])):
@@ -52,7 +53,7 @@ def hertz_friction_problem(params: dict | None = None, *, refine: int = 0, n_fin
     nominal = {k: DEFAULTS[k] for k in ("E", "nu", "P", "R")}
     pb = hertz.hertz_problem(base, refine=refine, n_fine=n_fine, size=size, zone=zone,
                              finite_strain=finite_strain, nominal=nominal, force_size=force_size,
-                             multipliers_per_node=2)
+                             multipliers_per_node=2, solver=solver)
     full = dict(pb.params, mu=values["mu"], eps_t=values.get("eps_t", pb.params["eps"]))
     c = pb.contact[0]
     return dataclasses.replace(pb, params=full, contact=(

@@ -35,6 +35,7 @@ from .values import checked_values
 from ..errors import InputError
 from ..fem.loads import Fixed, Ramp
 from ..fem.mesh import Mesh, merge, rectangle
+from ..linsolve import check_size
 from ..materials import Bodies, NeoHooke
 from ..model.problem import Problem
 
@@ -42,6 +43,11 @@ DEFAULTS = {"E1": 100.0, "nu1": 0.3, "E2": 1000.0, "nu2": 0.3, "R": 1.0, "mu": 0
             "s": 1.5}
 #: the block's length and height, the die's half-width, height and start
 L, H, A, D, X0 = 4.0, 1.0, 0.5, 0.5, 1.0
+#: bytes per (slave node x candidate segment x patch coordinate) of the finite-sliding
+#: pair's kernels at their peak (their forward-over-reverse Jacobians), and bytes of
+#: their compilation: fitted to the peak memory of `signorini ironing --no-fd` at
+#: refine 0 and 1 (1.57 and 3.88 GB; docs/benchmarks.md, the size guard)
+PAIR_BYTES, PAIR_BASE = 3.45e3, 0.8 * 1024.0**3
 #: the part of the path over which the die is pressed in
 T_PRESS = 0.2
 #: the block's cells along its top; the others follow (:func:`cell_counts`)
@@ -98,7 +104,25 @@ def _die(R: float, nx: int, ny: int):
     return Mesh(np.column_stack([x, y]), m.cells, m.node_sets, m.edge_sets), V
 
 
-def ironing_problem(params: dict | None = None, *, refine: int = 0, cells: int = CELLS) -> Problem:
+def check_mesh_size(refine: int = 0, cells: int = CELLS, *, force: bool = False, solver="auto") -> None:
+    """The size guard of the ironing meshes before they are built
+    (:func:`signorini.linsolve.check_size`): the unknowns of both bodies and the
+    pair's multipliers, and the finite-sliding pair's kernels, whose size grows
+    like the cube of the cells (every block node under the die's path carries
+    every die segment of the arc as a candidate)."""
+    cell_counts(cells, refine)  # the options' checks
+    # beyond 2^40 every count is refused: the counts of so many levels would be huge numbers
+    nbx, nby, ndx, ndy = cell_counts(cells, min(int(refine), 40))
+    nc = nbx + 1
+    n_dof = 2 * ((nbx + 1) * (nby + 1) + (ndx + 1) * (ndy + 1)) + 2 * nc
+    check_size(n_dof, force=force, what="the ironing problem", solver=solver,
+               # candidates x nodes x patch coordinates grow like the cells^3, n_dof^1.5
+               extra=lambda n: PAIR_BASE + PAIR_BYTES * nc * ndx * 2 * (3 + 2 * ndx) * (n / n_dof) ** 1.5,
+               hint="coarser meshes (smaller --refine or --cells)")
+
+
+def ironing_problem(params: dict | None = None, *, refine: int = 0, cells: int = CELLS,
+                    force_size: bool = False, solver="auto") -> Problem:
     """Build the ironing problem (values: :data:`DEFAULTS` updated by ``params``).
 
     Args:
@@ -106,8 +130,11 @@ def ironing_problem(params: dict | None = None, *, refine: int = 0, cells: int =
             (default E1/h for both, h the block's cell size along its top).
         refine: each level halves the cells of both bodies.
         cells: the block's cells along its top (see :func:`cell_counts`).
+        force_size: build the meshes even if they are estimated not to fit in
+            memory with ``solver`` (the run's linear solver).
     """
     values = check_params(params)
+    check_mesh_size(refine, cells, force=force_size, solver=solver)
     nbx, nby, ndx, ndy = cell_counts(cells, refine)
     block = rectangle(np.linspace(0.0, L, nbx + 1), np.linspace(0.0, H, nby + 1))
     die, V = _die(values["R"], ndx, ndy)

@@ -77,7 +77,7 @@ def execute(args) -> int:
     s = run(args.out, params, refine=args.refine, n_fine=args.n_fine, ratio=args.ratio,
             steps=args.steps, fd_check=not args.no_fd, solver=args.solver,
             options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter),
-            coarse_start=not args.no_coarse_start)
+            coarse_start=not args.no_coarse_start, force_size=args.force_size)
     zone = f", c/b = {s['c_over_b']['computed']:.3f} (Mindlin {s['c_over_b']['analytical']:.3f})" \
         if isinstance(s.get("c_over_b"), dict) else ""
     print(f"Two cylinders ({s['mesh']['dofs']} DOFs, {s['steps']} increment(s)): "
@@ -92,18 +92,20 @@ def execute(args) -> int:
 @timing.recorded
 def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, ratio: float = 2 / 3,
         steps=None, fd_check: bool = True, sensitivities=None, options=None, fd_step: float = 1e-5,
-        solver="auto", coarse_start: bool = True) -> dict:
+        solver="auto", coarse_start: bool = True, force_size: bool = False) -> dict:
     """Solve the two-cylinder problem with DDM sensitivities and write the results
     into ``out``; returns the summary. Sensitivities: R1, R2, E1, P (and mu, Q with
     friction). The FD check re-solves the whole path at phi +- h (h = ``fd_step``
     max(|phi|, 1)) and compares p_N and p_T over the contact zone. From 50,000
     DOFs on (``coarse_start``) the load path is started from coarser meshes of
-    the same grid lines, solved along it first (docs/theory.md §10.3)."""
+    the same grid lines, solved along it first (docs/theory.md §10.3).
+    ``force_size``: run even if the meshes are estimated not to fit in memory."""
     clock = Timer()
     out = prepare_output(out)
     options = options or NewtonOptions(rtol=RTOL)
     solver = use_solver(solver)
-    pb = cylinders_problem(params, refine=refine, n_fine=n_fine, ratio=ratio)
+    pb = cylinders_problem(params, refine=refine, n_fine=n_fine, ratio=ratio,
+                           force_size=force_size, solver=solver)
     v = pb.params
     friction = v["mu"] > 0
     steps = steps or (STEPS_FRICTION if friction else STEPS)

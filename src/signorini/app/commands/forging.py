@@ -97,7 +97,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"--steps must be a whole number >= 1, got {steps!r}")
     out = prepare_output(out)
-    pb = forging_problem(params, mesh=mesh, force_size=force_size)
+    pb = forging_problem(params, mesh=mesh, force_size=force_size, solver=solver)
     v = pb.params
     opts = options(rtol, max_iter)
     solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too

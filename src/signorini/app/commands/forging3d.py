@@ -88,7 +88,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (6, 6), step
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"--steps must be a whole number >= 1, got {steps!r}")
     out = prepare_output(out)
-    pb = forging3d_problem(params, mesh=mesh, force_size=force_size)
+    pb = forging3d_problem(params, mesh=mesh, force_size=force_size, solver=solver)
     v = pb.params
     opts = options(rtol) if max_iter is None else options(rtol, max_iter)
     solver = use_solver(solver)

@@ -101,7 +101,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
     sensitivities = list(sensitivities)
     pb = hertz_problem(params, refine=refine, method=method, finite_strain=finite_strain, size=size,
-                       zone=zone, force_size=force_size)
+                       zone=zone, force_size=force_size, solver=solver)
     v = pb.params
     an = analytical(v["P"], v["R"], v["E"], v["nu"])
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": fine_cell_size(pb),

@@ -121,7 +121,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, st
     options = options or NewtonOptions(rtol=RTOL)
     solver = use_solver(solver)
     pb = hertz3d_problem(params, refine=refine, n_fine=n_fine, size=size, zone=zone,
-                         axisymmetric=axisymmetric, force_size=force_size)
+                         axisymmetric=axisymmetric, force_size=force_size, solver=solver)
     v = pb.params
     friction = v["mu"] > 0
     steps = steps or (STEPS_FRICTION if friction else STEPS)

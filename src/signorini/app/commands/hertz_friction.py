@@ -100,7 +100,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     options = options or NewtonOptions(rtol=1e-10)
     solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too
     pb = hertz_friction_problem(params, refine=refine, size=size, zone=zone,
-                                finite_strain=finite_strain, force_size=force_size)
+                                finite_strain=finite_strain, force_size=force_size, solver=solver)
     v = pb.params
     h = hertz.fine_cell_size(pb)
     mesh_info = {"nodes": pb.mesh.n_nodes, "cells": pb.mesh.n_cells, "contact_cell_size": h,

@@ -64,7 +64,8 @@ def add_parser(sub) -> None:
 def execute(args) -> int:
     params = parse_sets(args.set, IRONING_SET)
     s = run(args.out, params, refine=args.refine, cells=args.cells, steps=args.steps, fd_check=not args.no_fd,
-            solver=args.solver, options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
+            solver=args.solver, options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter),
+            force_size=args.force_size)
     print(f"Ironing ({s['mesh']['dofs']} DOFs, {s['steps']} increments): die force at the end "
           f"F_N = {s['force_final']['F_N']:.5g}, F_T = {s['force_final']['F_T']:.5g} "
           f"(F_T/F_N over the slide {s['force_ratio_sliding']['mean']:.4f}, mu = {s['params']['mu']:g}); "
@@ -83,16 +84,17 @@ def _forces(sol, names=()) -> dict:
 @timing.recorded
 def run(out, params: dict | None = None, *, refine: int = 0, cells: int = CELLS, steps: int = STEPS,
         fd_check: bool = True, sensitivities=None, options=None, fd_step: float = 1e-5,
-        solver="auto") -> dict:
+        solver="auto", force_size: bool = False) -> dict:
     """Solve the ironing problem with DDM sensitivities of the die force along the
     path and write the results into ``out``; returns the summary. The FD check
     re-solves the whole path at phi +- h (h = ``fd_step`` max(|phi|, 1)) and
-    compares F_N and F_T at every increment."""
+    compares F_N and F_T at every increment. ``force_size``: run even if the
+    meshes are estimated not to fit in memory."""
     clock = Timer()
     out = prepare_output(out)
     options = options or NewtonOptions(rtol=RTOL)
     solver = use_solver(solver)
-    pb = ironing_problem(params, refine=refine, cells=cells)
+    pb = ironing_problem(params, refine=refine, cells=cells, force_size=force_size, solver=solver)
     v = pb.params
     names = list(SENSITIVITIES if sensitivities is None else sensitivities)
     top = pb.mesh.nodes[pb.mesh.node_sets["block.top"]]

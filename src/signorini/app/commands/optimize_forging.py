@@ -78,7 +78,8 @@ def execute(args) -> int:
         raise InputError(f"--mu needs friction coefficients >= 0, got {args.mu!r}")
     kwargs = dict(mesh=forging.parse_mesh(args.mesh), steps=args.steps, method=args.method,
                   gtol=args.gtol, maxiter=args.maxiter, gradient=args.gradient,
-                  resume=args.resume, solver=args.solver, rtol=args.rtol)
+                  resume=args.resume, solver=args.solver, rtol=args.rtol,
+                  force_size=args.force_size)
     if len(mus) > 1 and not args.sequential:  # one Dask task per mu
 
         s = optimize_mus_parallel(args.out, mus, scheduler=args.scheduler,
@@ -245,7 +246,7 @@ def _optimum(d: Path, sol, res, obj, mu: float, t0: float) -> dict:
 def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: int = 50,
         method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50, gradient: str = "ddm",
         resume: bool = False, solver="auto", rtol: float = 1e-11, phi_min: float = PHI_MIN,
-        mapper=None, extra_summary: dict | None = None) -> dict:
+        mapper=None, extra_summary: dict | None = None, force_size: bool = False) -> dict:
     """Optimise the forging preform for each mu and write the results (module docstring).
 
     Args:
@@ -264,6 +265,7 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
             :func:`optimize_mu` for every mu (default: one after another here;
             :func:`signorini.app.commands.optimize_forging.optimize_mus_parallel` passes Dask tasks).
         extra_summary: entries added to the collected summary.
+        force_size: run even if the mesh is estimated not to fit in memory.
 
     Returns:
         The collected summary (also ``out/summary.json``): ``runs`` (one per mu:
@@ -288,6 +290,7 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
     out = prepare_output(out)
     note_run(out, "every evaluation is recorded in mu_<value>/history.csv: the same command with "
                   "--resume continues from the best point of each")
+    forging.check_mesh_size(tuple(mesh), force=force_size, solver=solver)
     base_problem(tuple(mesh))  # bad mesh input fails here, before any optimisation
     kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
                   gradient=gradient, resume=resume, solver=solver, rtol=rtol, phi_min=phi_min)
@@ -330,7 +333,7 @@ def optimize_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int
                           method: str = "BFGS", gtol: float = 1e-6, maxiter: int = 50,
                           gradient: str = "ddm", resume: bool = False, solver="auto",
                           rtol: float = 1e-11, phi_min=None, scheduler=None, n_workers=None,
-                          sequential: bool = False, client=None) -> dict:
+                          sequential: bool = False, client=None, force_size: bool = False) -> dict:
     """:func:`run` with one Dask task per mu.
 
     Same arguments, files and returned summary as ``run`` (plus
@@ -352,4 +355,4 @@ def optimize_mus_parallel(out, mus=(0.1, 0.2, 0.3), *, mesh=(10, 20), steps: int
     return run(out, mus, mesh=mesh, steps=steps, method=method, gtol=gtol, maxiter=maxiter,
                gradient=gradient, resume=resume, solver=solver, rtol=rtol,
                phi_min=PHI_MIN if phi_min is None else phi_min, mapper=mapper,
-               extra_summary={"parallel": where})
+               extra_summary={"parallel": where}, force_size=force_size)
