@@ -115,6 +115,105 @@ def test_refine_6_is_refused_before_meshing(tmp_path, capsys):
     assert "--force-size" in err and "GB" in err and "unknowns" in err
 
 
+#: every command that builds a mesh, with options that make it absurdly large (a
+#: command added to the registry must be added here: the next test says so)
+ABSURD = {
+    "hertz": ["--refine", "9"],
+    "hertz-friction": ["--refine", "9"],
+    "hertz3d": ["--n-fine", "400"],
+    "forging": ["--mesh", "3000x6000"],
+    "forging3d": ["--mesh", "300x600"],
+    "cylinders": ["--refine", "6"],
+    "ironing": ["--refine", "3"],
+    "optimize-forging": ["--mesh", "3000x6000"],
+    "run": ["{toml}"],
+}
+#: options that make each command's mesh small (the guard refuses it only when the
+#: machine is said to have almost no memory)
+SMALL = {
+    "hertz": [], "hertz-friction": [], "hertz3d": ["--n-fine", "4"], "forging": ["--mesh", "4x8"],
+    "forging3d": ["--mesh", "2x2"], "cylinders": ["--n-fine", "6"], "ironing": ["--cells", "24"],
+    "optimize-forging": ["--mesh", "4x8"], "run": ["{small_toml}"],
+}
+HUGE_TOML = """[params]
+E = 100.0
+[mesh]
+type = "rectangle"
+x = [0.0, 1.0]
+y = [0.0, 1.0]
+nx = {n}
+ny = {n}
+[material]
+type = "linear_elastic"
+E = "E"
+nu = 0.3
+"""
+
+
+def test_every_command_that_builds_a_mesh_is_in_the_size_guard_table():
+    from signorini.app import registry
+
+    assert set(ABSURD) == set(SMALL) == set(registry.SWEEPABLE)
+
+
+def _argv(name, opts, tmp_path):
+    toml = tmp_path / "huge.toml"
+    toml.write_text(HUGE_TOML.format(n=100_000))
+    small_toml = tmp_path / "small.toml"
+    small_toml.write_text(HUGE_TOML.format(n=4))
+    opts = [o.format(toml=toml, small_toml=small_toml) for o in opts]
+    if name == "run":
+        return ["run", *opts, "--out", str(tmp_path / "o"), "-q"]
+    return [name, *opts, "--out", str(tmp_path / "o"), "-q"]
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("name", list(ABSURD))
+def test_an_absurd_size_is_refused_before_anything_is_built(name, tmp_path, capsys):
+    """Exit 2 with the estimate, what is available and the largest size that fits;
+    no more than a few MB allocated on the way (the mesh is never built)."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        code = main(_argv(name, ABSURD[name], tmp_path))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    err = capsys.readouterr().err
+    assert code == 2, err
+    for fragment in ("unknowns", "GB", "available", "the largest that fits is about",
+                     "--force-size"):
+        assert fragment in err, (fragment, err)
+    assert "Traceback" not in err
+    assert peak < 50e6, peak
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("name", list(SMALL))
+def test_the_guard_counts_each_commands_own_mesh(name, tmp_path, capsys, monkeypatch):
+    """With 0.5 GB available every command's small mesh is refused too (the
+    estimate is of the mesh the options build, not a fixed size), and the
+    refusal names the solver the run would use."""
+    monkeypatch.setattr(resources, "available_memory", lambda: 0.5 * resources.GB)
+    code = main(_argv(name, SMALL[name], tmp_path) + ["--solver", "superlu"])
+    err = capsys.readouterr().err
+    assert code == 2 and "with the superlu solver" in err, err
+
+
+def test_the_guard_knows_3d_fill_and_the_iterative_solver(monkeypatch):
+    """A 3-D mesh that PARDISO's factors cannot hold fits with AMG-GMRES: the
+    refusal says so, and the same mesh passes with solver="amg"."""
+    from signorini.problems import hertz3d
+
+    monkeypatch.setattr(resources, "available_memory", lambda: 3.0 * resources.GB)
+    with pytest.raises(ResourceError) as e:
+        hertz3d.hertz3d_problem(n_fine=24, solver="pardiso")  # 143k unknowns: ~3.2 GB of factors
+    ours(e, "--solver amg", "largest that fits")
+    pb = hertz3d.hertz3d_problem(n_fine=24, solver="amg")  # ~2.2 GB
+    assert pb.mesh.n_nodes > 40_000
+
+
 def test_size_guard_uses_available_memory(monkeypatch):
     monkeypatch.setattr(resources, "available_memory", lambda: 0.3 * resources.GB)
     with pytest.raises(ResourceError) as e:

@@ -9,3 +9,46 @@ def test_memory_estimate_of_pardiso_matches_measurements():
 
     est = lambda n: resources.estimated_peak_memory(n, "pardiso") / resources.GB  # noqa: E731
     assert abs(est(224_848) / 1.77 - 1) < 0.2 and abs(est(1_057_264) / 6.8 - 1) < 0.2
+
+
+def test_memory_estimates_in_3d_and_with_amg_match_measurements():
+    """docs/benchmarks.md, 3-D Hertz: PARDISO 1.55 GB at 68,400 DOFs and 6.21 GB at
+    258,048; AMG-GMRES 1.18 GB at 68,400 and 13.6 GB at 1,085,625; within 20 %."""
+    from signorini.linsolve import memory as m
+
+    est = lambda n, s: m.estimated_peak_memory(n, s, dim=3) / m.GB  # noqa: E731
+    for n, solver, measured in ((68_400, "pardiso", 1.55), (258_048, "pardiso", 6.21),
+                                (68_400, "amg", 1.18), (1_085_625, "amg", 13.6)):
+        assert abs(est(n, solver) / measured - 1) < 0.2, (n, solver, est(n, solver))
+    # a 3-D LU fills in faster than a 2-D one of the same size
+    assert m.estimated_peak_memory(1_000_000, "pardiso", 3) > 4 * m.estimated_peak_memory(
+        1_000_000, "pardiso", 2)
+
+
+def test_the_ironing_estimate_counts_the_pairs_kernels(monkeypatch):
+    """`signorini ironing --no-fd` peaked at 1.57 GB (refine 0, 2,886 DOFs) and 3.88 GB
+    (refine 1, 10,630 DOFs): the candidate pairs, not the unknowns, set its size."""
+    from signorini.linsolve import memory as m
+    from signorini.problems import ironing
+
+    seen = []
+
+    def capture(n, *, extra, **kw):
+        seen.append(m.estimated_peak_memory(n, "pardiso", 2, extra(n)) / m.GB)
+        return 0.0
+
+    monkeypatch.setattr(ironing, "check_size", capture)
+    for refine, measured in ((0, 1.57), (1, 3.88)):
+        ironing.check_mesh_size(refine)
+        assert abs(seen[-1] / measured - 1) < 0.2, (refine, seen[-1])
+
+
+def test_the_largest_size_that_fits_is_the_boundary_of_the_estimate():
+    from signorini.linsolve import memory as m
+
+    for solver, dim in (("pardiso", 2), ("pardiso", 3), ("superlu", 2), ("amg", 3)):
+        have = 8 * m.GB
+        n = m.largest_fitting(have, solver, dim)
+        assert m.estimated_peak_memory(n, solver, dim) <= have < m.estimated_peak_memory(
+            n + 1, solver, dim)
+    assert m.largest_fitting(0.1 * m.GB, "pardiso", 2) == 0  # not even the process fits

@@ -144,14 +144,15 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
 
 
     t_start = time.perf_counter()
-    problem, cfg = load(path)
+    problem, cfg = load(path, force_size=force_size, solver=solver)
     given = {k: v for k, v in (("rtol", rtol), ("max_iter", max_iter)) if v is not None}
     if given:
         cfg = dataclasses.replace(cfg, options=dataclasses.replace(cfg.options, **given))
     out = prepare_output(out)
     n_contact = sum(len(np.unique(problem.mesh.edge_set(c.edges))) * c.method.n_multipliers
                     for c in problem.contact)
-    check_size(2 * problem.mesh.n_nodes + n_contact, force=force_size, what=str(cfg.path))
+    check_size(2 * problem.mesh.n_nodes + n_contact, force=force_size, what=str(cfg.path),
+               solver=solver, hint="a coarser mesh")
     summary = {
         "file": str(cfg.path), "title": cfg.title, "status": "running",
         "params": dict(problem.params),

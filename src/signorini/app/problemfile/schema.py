@@ -23,6 +23,7 @@ from ...algorithms.newton import NewtonOptions
 from ...contact.obstacles import Circle, Line
 from ...model.problem import Problem
 from ...fem.meshfile import read_mesh
+from ...linsolve import check_size
 
 
 __all__ = ["Response", "RunConfig", "load"]
@@ -96,11 +97,13 @@ def _kind(v) -> str:
 
 class _Reader:
     """Validation state of one file: its label (for messages) and parameters."""
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, force_size: bool = False, solver="auto"):
         self.path = path
         self.label = str(path)
         self.params: dict[str, float] = {}
         self.warnings: list[str] = []  # what reading found suspicious
+        # the size guard of a generated mesh, before it is built
+        self.force_size, self.solver = force_size, solver
 
     def error(self, where: str, msg: str, cls=InputError):
         return cls(f"{self.label}: {where} {msg}")
@@ -305,6 +308,12 @@ def _mesh(rd: _Reader, data) -> tuple[Mesh, dict]:
         raise t.err("x", f"must be increasing [x0, x1] with x0 < x1, got [{x0}, {x1}]")
     if not y1 > y0:
         raise t.err("y", f"must be increasing [y0, y1] with y0 < y1, got [{y0}, {y1}]")
+
+    # every node's two displacements and one multiplier per node of the longer side:
+    # checked before the grid is built (a file's mesh is checked once it is read)
+    check_size(2 * (nx + 1) * (ny + 1) + max(nx, ny) + 1, force=rd.force_size,
+               what=f"{rd.label}: [mesh] {nx} x {ny}", solver=rd.solver, quiet=True,
+               hint="a coarser mesh (smaller nx, ny)")
 
     def make():
         mesh = rectangle(np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1))
@@ -512,8 +521,10 @@ def _responses(rd: _Reader, items: list, mesh: Mesh, contacts, fixed) -> tuple[R
     return tuple(out)
 
 
-def load(path) -> tuple[Problem, RunConfig]:
-    """Read a problem file (schema: module docstring).
+def load(path, *, force_size: bool = False, solver="auto") -> tuple[Problem, RunConfig]:
+    """Read a problem file (schema: module docstring). A generated mesh is refused
+    before it is built if it is estimated not to fit in memory with ``solver``
+    (the run's linear solver), unless ``force_size``.
 
     Returns:
         (problem, config): the :class:`~signorini.model.problem.Problem` at the
@@ -524,9 +535,10 @@ def load(path) -> tuple[Problem, RunConfig]:
             missing keys, wrong types or values, unknown sets; the message
             names the file and the key.
         UnknownParameterError: a parameter name that ``[params]`` does not define.
+        ResourceError: the generated mesh is estimated not to fit in memory.
     """
     path = Path(path)
-    rd = _Reader(path)
+    rd = _Reader(path, force_size, solver)
     doc = _read_toml(path)
     for k, v in doc.items():
         if k not in _TOP:
