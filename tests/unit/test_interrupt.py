@@ -68,3 +68,112 @@ def test_a_signal_keeps_the_converged_increments(tmp_path, sig, phase):
         ET.parse(out / f)
     # no temporary file of an interrupted write is left
     assert not [f.name for f in out.iterdir() if ".partial" in f.name or f.name.startswith(".")]
+
+
+#: a command whose run spends its time in one library call that releases the
+#: interpreter's lock and never returns to Python for minutes (as a factorisation
+#: or a compilation of a large problem does)
+SLOW_COMMAND = '''
+import hashlib, sys
+from signorini.app import cli, registry
+from signorini.app.runner import prepare_output
+
+mod = type(sys)("slow_c")
+mod.NAME = "slow-c"
+def add_parser(sub):
+    p = sub.add_parser("slow-c")
+    p.add_argument("--out", required=True)
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-v", "--verbose", action="store_true")
+def execute(args):
+    prepare_output(args.out)
+    print("inside the library call", file=sys.stderr, flush=True)
+    hashlib.pbkdf2_hmac("sha256", b"x", b"y", 2**31 - 1)  # many minutes
+    return 0
+mod.add_parser, mod.execute = add_parser, execute
+sys.modules["slow_c"] = mod
+registry.COMMANDS["slow-c"] = "slow_c"
+sys.exit(cli.main(["slow-c", "--out", sys.argv[1]]))
+'''
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_inside_a_long_library_call_ends_the_run(tmp_path, sig):
+    """Python would run the handler only after the call returns (minutes here): the
+    watchdog writes the report after its grace period and ends the process."""
+    from signorini.app.cli import GRACE_S
+
+    out = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, "-c", SLOW_COMMAND, str(out)], stderr=subprocess.PIPE,
+                         stdout=subprocess.DEVNULL, text=True)
+    for line in p.stderr:
+        if "inside the library call" in line:
+            break
+    time.sleep(0.5)
+    p.send_signal(sig)
+    t0 = time.monotonic()
+    try:
+        code = p.wait(timeout=60)  # ended, not hours later
+    finally:
+        p.kill()
+    waited = time.monotonic() - t0
+    rest = p.stderr.read()
+    assert code == 128 + sig, rest
+    assert waited >= GRACE_S - 0.5  # the main thread had its chance first
+    name = "SIGINT" if sig == signal.SIGINT else "SIGTERM"
+    assert f"interrupted by {name}" in rest and "inside a library call" in rest, rest
+    assert "Traceback" not in rest
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and name in s["reason"]
+
+
+#: each command with options that make its solve take several seconds
+LONG_RUNS = {
+    "hertz": ["--refine", "2", "--no-fd"],
+    "hertz-friction": ["--refine", "1", "--no-fd"],
+    "hertz3d": ["--n-fine", "12", "--no-fd"],
+    "forging": ["--mesh", "20x40", "--no-fd"],
+    "forging3d": ["--mesh", "6x6", "--no-fd"],
+    "cylinders": ["--refine", "2", "--no-fd"],
+    "ironing": ["--no-fd"],
+    "optimize-forging": ["--mu", "0.1", "--maxiter", "3"],
+    "run": [os.path.join(os.path.dirname(__file__), "..", "..", "examples", "block.toml")],
+}
+
+
+def test_every_command_is_in_the_interrupt_table():
+    from signorini.app import registry
+
+    assert set(LONG_RUNS) == set(registry.SWEEPABLE)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize("delay", [2.5, 6.0], ids=["early", "later"])
+@pytest.mark.parametrize("name", list(LONG_RUNS))
+def test_sigterm_is_honoured_within_seconds_in_every_command(tmp_path, name, delay):
+    """Whatever the phase (imports, mesh, compilation, factorisation, output), SIGTERM
+    ends the command within seconds with 143 and an 'interrupted' summary, or
+    the command had already finished (0), or had not begun (still importing). The
+    faster test of the watchdog above covers the same code in CI."""
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "signorini.app.cli", name, *LONG_RUNS[name], "--out", str(out),
+           "-q"]
+    p = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    time.sleep(delay)
+    p.send_signal(signal.SIGTERM)
+    t0 = time.monotonic()
+    try:
+        code = p.wait(timeout=60)
+    finally:
+        p.kill()
+    err = p.stderr.read()
+    assert code in (0, 143, -signal.SIGTERM), err
+    assert "Traceback" not in err
+    if code == -signal.SIGTERM:  # still importing Python's modules: ended by the default action,
+        assert not out.exists()  # before the command began (nothing to keep)
+    if code == 143:
+        assert time.monotonic() - t0 < 30, err  # seconds, not the rest of the run
+        if (out / "summary.json").exists():
+            assert json.loads((out / "summary.json").read_text())["status"] == "interrupted"

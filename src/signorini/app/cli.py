@@ -113,32 +113,130 @@ def entry() -> None:
     os._exit(code if isinstance(code, int) else 1)
 
 
+#: seconds a signal may wait for the main thread (inside a library call: a
+#: factorisation, a compilation, a large allocation) before the watchdog reports
+#: the interrupt itself and ends the process; and the seconds that report may take
+GRACE_S, REPORT_S = 3.0, 20.0
+
+
 @contextlib.contextmanager
 def _signals(final: int | None = None):
-    """SIGTERM raises :class:`~signorini.errors.Interrupted` as SIGINT raises
-    ``KeyboardInterrupt`` (so a batch scheduler's stop keeps the run's work too);
-    with ``final``, while the report of an interrupt is written, either signal
-    ends the process at once with that exit status. Only in the main thread
-    (signal handlers cannot be set elsewhere: a sweep's points in Dask threads
-    run without)."""
+    """SIGTERM raises :class:`~signorini.errors.Interrupted` and SIGINT
+    ``Interrupted(2)``, a ``KeyboardInterrupt`` (so a batch scheduler's stop keeps
+    the run's work too); with ``final``, while the report of an interrupt is
+    written, either signal ends the process at once with that exit status. Only in
+    the main thread (signal handlers cannot be set elsewhere: a sweep's points in
+    Dask threads run without).
+
+    Python runs a signal's handler in the main thread between two bytecodes, so a
+    signal that comes during a long library call (PARDISO's factorisation, XLA's
+    compilation) would wait for its end. A watchdog thread is woken at once
+    (``signal.set_wakeup_fd``); if the handler has not run within
+    :data:`GRACE_S` seconds, the watchdog writes the interrupt report (what has
+    converged is kept) and ends the process with 128 + the signal's number. A
+    library call that holds the interpreter's lock throughout stops the watchdog
+    too; none of those the solver spends its time in does."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    if final is not None:
+        def now(signum, frame):
+            os._exit(final)
+
+        before = {s: signal.signal(s, now) for s in (signal.SIGTERM, signal.SIGINT)}
+        try:
+            yield
+        finally:
+            for s, h in before.items():
+                signal.signal(s, h)
+        return
+
+    handled = threading.Event()
 
     def stop(signum, frame):
+        handled.set()
         raise Interrupted(signum)
 
-    def now(signum, frame):
-        os._exit(final)
-
-    handler = stop if final is None else now
-    before = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)
-              if final is not None or s == signal.SIGTERM}
+    before = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGINT)}
+    watch = _Watchdog(handled)
     try:
         yield
     finally:
+        watch.close()
         for s, h in before.items():
             signal.signal(s, h)
+
+
+class _Watchdog:
+    """The thread that ends a process whose main thread does not answer a signal
+    (:func:`_signals`)."""
+
+    def __init__(self, handled: threading.Event):
+        import socket  # noqa: PLC0415  (lazy: only a command's run needs it)
+
+        self.handled = handled
+        self.closed = threading.Event()
+        self.rsock, self.wsock = socket.socketpair()
+        self.wsock.setblocking(False)
+        try:
+            self.old_fd = signal.set_wakeup_fd(self.wsock.fileno(), warn_on_full_buffer=False)
+        except ValueError:  # not the main thread of the main interpreter
+            self.old_fd = None
+            return
+        self.thread = threading.Thread(target=self._run, name="signorini-signal-watchdog",
+                                       daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        while not self.closed.is_set():
+            try:
+                data = self.rsock.recv(1)
+            except OSError:
+                return
+            if not data or self.closed.is_set():
+                return
+            signum = data[0]
+            if signum not in (signal.SIGINT, signal.SIGTERM):
+                continue
+            if self.handled.wait(GRACE_S) or self.closed.is_set():
+                return  # the main thread took it: it writes the report
+            self._end(signum)
+
+    def _end(self, signum: int) -> None:
+        from . import runner  # noqa: PLC0415  (lazy: the library is imported by now)
+
+        line = []
+
+        def report():
+            try:
+                line.append(runner.report_interrupt(signum))
+            except Exception as e:  # noqa: BLE001 - the process ends anyway; say why
+                line.append(f"interrupted; the report could not be written ({e})")
+
+        t = threading.Thread(target=report, daemon=True)
+        t.start()
+        t.join(REPORT_S)
+        text = line[0] if line else "interrupted; the report took too long and was abandoned"
+        try:
+            print(f"\nsignorini: {text} (the signal came inside a library call, which was "
+                  "abandoned)", file=sys.stderr, flush=True)
+        finally:
+            os._exit(128 + signum)
+
+    def close(self):
+        self.closed.set()
+        if self.old_fd is not None:
+            signal.set_wakeup_fd(self.old_fd)
+            try:
+                self.wsock.send(b"\0")  # wakes the thread, which sees it is closed
+            except OSError:
+                pass
+            self.thread.join(1.0)
+        for s in (self.wsock, self.rsock):
+            try:
+                s.close()
+            except OSError:
+                pass
 
 
 def _main(argv) -> int:
