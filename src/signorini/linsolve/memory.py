@@ -111,7 +111,7 @@ def available_memory() -> float | None:
 
 def check_size(n_dof: int, *, force: bool = False, what: str = "this run", dim: int = 2,
                solver="auto", extra: float = 0.0, hint: str = "a coarser mesh (smaller --refine)",
-               quiet: bool = False) -> float:
+               lower_bound: bool = False) -> float:
     """The size guard of every command and problem builder: log the estimated size
     of a run and refuse it if it cannot fit in memory, before the mesh is built.
 
@@ -127,7 +127,8 @@ def check_size(n_dof: int, *, force: bool = False, what: str = "this run", dim: 
             a function of the number of unknowns giving them (how they grow with
             the mesh, for the largest size that fits).
         hint: what to change, in the refusal (e.g. the command's mesh option).
-        quiet: log nothing unless the run is refused (a preliminary check).
+        lower_bound: ``n_dof`` is a lower bound (a preliminary check, before the
+            mesh's exact size is known): logged only if the run is refused.
 
     Returns:
         The estimated peak memory in bytes.
@@ -141,12 +142,12 @@ def check_size(n_dof: int, *, force: bool = False, what: str = "this run", dim: 
     grow = extra if callable(extra) else (lambda n: float(extra) * n / max(int(n_dof), 1))
     need = estimated_peak_memory(n_dof, name, dim, grow(n_dof))
     have = available_memory()
-    if not quiet:
+    if not lower_bound:
         log.info("%s: %d unknowns, estimated peak memory %.2g GB with %s (%s available)", what,
                  n_dof, need / GB, name, "unknown" if have is None else f"{have / GB:.3g} GB")
     if have is not None and need > HEADROOM * have:
         most = largest_fitting(HEADROOM * have, name, dim, grow)
-        msg = (f"{what} has {n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of memory "
+        msg = (f"{what} has {'at least ' if lower_bound else ''}{n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of memory "
                f"with the {name} solver, more than {100 * HEADROOM:.0f} % of the {have / GB:.3g} GB "
                f"available (the largest that fits is about {most:,} unknowns)")
         if not force:

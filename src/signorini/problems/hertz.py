@@ -85,7 +85,8 @@ def check_fine_zone(refine: int, n_fine: int, *, dim: int = 2, bodies: int = 1,
     lines of a mesh that large would itself exhaust the time or the memory."""
     nf = int(n_fine) * 2 ** min(int(refine), 64)
     nodes = bodies * (nf + 1) ** (dim - 1) * (max(round(nf * 2 / 3), 1) + 1)
-    check_size(dim * nodes, dim=dim, force=force, what=what, solver=solver, hint=hint, quiet=True)
+    check_size(dim * nodes, dim=dim, force=force, what=what, solver=solver, hint=hint,
+               lower_bound=True)
 
 
 def mesh_coordinates(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 24,
