@@ -9,7 +9,6 @@ import numpy as np
 from ...algorithms.newton import NewtonOptions
 from ...algorithms.coarse_to_fine import warn_failed_levels
 from ...design.finite_differences import finite_difference
-from ...model import checks
 from ...post import files as io, plots
 from ...problems.hertz import (
     DEFAULTS, analytical, coarse_start_for, coarse_start_skipped, fine_cell_size, hertz_problem,
@@ -18,6 +17,7 @@ from ..options import (
     UNITS, Formatter, coarse_start_option, common_options, finish, fmt_coarse, fmt_fd, nominal_a0,
     newton_options, parse_sets, with_defaults)
 from ... import timing
+from .. import validity
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
     use_solver, write_summary)
@@ -64,15 +64,11 @@ def execute(args) -> int:
                   options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter))
     print(f"Hertz ({args.method}, {s['mesh']['dofs']} DOFs): p0 = {s['p0']['computed']:.5g} "
           f"(analytical {s['p0']['analytical']:.5g}, error {100 * s['p0']['rel_error']:+.2f} %), "
-          f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}); "
+          f"a = {s['a']['computed']:.4g} (analytical {s['a']['analytical']:.4g}){validity.note(s)}; "
           f"Newton iterations {s['newton_iterations']}{fmt_coarse(s['coarse_start'])}; "
           f"DDM vs FD (max rel. diff.): {fmt_fd(s['ddm_vs_fd_rel_diff'])}; "
           f"solver {s['solver']}")
     return finish(args, s)
-
-
-#: Hertz's half-space solution assumes a small contact zone, a << R
-VALID_A_OVER_R = 0.3
 
 
 @timing.recorded
@@ -125,8 +121,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
     closed = c["p_N"] > 0
     a_fe = float(x[closed].max()) if closed.any() else 0.0
     p0_fe = float(c["p_N"].max())
-    _validity(sol, a_fe, v, pb, zone * analytical(**{k: DEFAULTS[k] for k in ("P", "R", "E", "nu")})["a"],
-              checks)
+    invalid = contact_validity(sol, a_fe, v["R"], pb, zone * nominal_a0("hertz"))
 
     timing.mark("output")
     _figures(out, x, c, an, v, method, sensitivities)  # the output helper draws them meanwhile
@@ -148,6 +143,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
         "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
         "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,
               "error_in_cells": (a_fe - an["a"]) / fine_cell_size(pb)},
+        "analytical_comparison": validity.comparison(invalid),
         **newton_log(sol),
         "coarse_start": levels if levels else (skipped or "no coarser mesh"),
         "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
@@ -198,18 +194,9 @@ def _figures(out, x, c, an, v, method, sensitivities) -> None:
             title="Sensitivity of the pressure to the cylinder radius", xlim=(0, 1.5 * an["a"]))
 
 
-def _validity(sol, a_fe: float, v: dict, pb, zone_width: float, checks) -> None:
-    """Warn when the computed contact zone leaves the model's range of validity."""
-    if a_fe > VALID_A_OVER_R * v["R"]:
-        checks.warn(sol, f"the contact half-width a = {a_fe:.4g} exceeds {VALID_A_OVER_R} R = "
-                         f"{VALID_A_OVER_R * v['R']:.4g}: Hertz's half-space solution (and the "
-                         "comparison with it) assumes a << R; reduce the load P or increase R")
+def contact_validity(sol, a: float, R: float, pb, zone_width: float) -> list[str]:
+    """The validity warnings (:mod:`signorini.app.validity`) of a Hertz half model's
+    contact half-width ``a``: against R, the block's width and the fine zone."""
     W = float(pb.mesh.nodes[:, 0].max())
-    if a_fe > 0.25 * W:
-        checks.warn(sol, f"the contact zone (a = {a_fe:.4g}) reaches {a_fe / W:.0%} of the block "
-                         f"width {W:.4g}, so the block is no longer a half-space; use a larger "
-                         "block (--block)")
-    if a_fe > zone_width:
-        checks.warn(sol, f"the contact zone (a = {a_fe:.4g}) extends beyond the fine mesh zone "
-                         f"({zone_width:.4g}), where the cells grow; widen it (--zone-width) or "
-                         "change the nominal sizes")
+    return validity.check(sol, a, [validity.half_space(W), validity.fine_zone(zone_width)],
+                          radius=R)

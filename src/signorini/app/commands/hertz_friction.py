@@ -16,8 +16,9 @@ from ...problems.hertz_friction import (
 from ..options import (
     UNITS, Formatter, adjoint_option, coarse_start_option, common_options, finish, fmt_fd,
     newton_options, nominal_a0, parse_sets, print_adjoint, with_defaults)
-from .hertz import HERTZ_TEXTS
+from .hertz import HERTZ_TEXTS, contact_validity
 from ... import timing
+from .. import validity
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
     summary_header, use_solver, write_summary)
@@ -61,7 +62,7 @@ def execute(args) -> int:
     ca = ", ".join(f"{lv['c_over_a']:.3f} [{lv['c_over_a_bracket'][0]:.3f}, "
                    f"{lv['c_over_a_bracket'][1]:.3f}]" for lv in s["loads"])
     print(f"frictional Hertz ({s['mesh']['dofs']} DOFs, {s['steps']} increments): "
-          f"c/a at P1, P2, P3 = {ca}; Newton iterations {sum(s['newton_iterations'])} "
+          f"c/a at P1, P2, P3 = {ca}{validity.note(s)}; Newton iterations {sum(s['newton_iterations'])} "
           f"in total; DDM vs FD at P3 (max rel. diff.): {fmt_fd(s['ddm_vs_fd_rel_diff_P3'])}")
     print_adjoint(s)
     return finish(args, s)
@@ -123,6 +124,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     adj = _adjoint(out, sol, sensitivities, solver) if adjoint else None
     timing.mark("output")
     levels = _levels(out, sol, v, sensitivities)
+    invalid = contact_validity(sol, levels[-1]["a"], v["R"], pb, zone * nominal_a0("hertz_friction"))
     _figures(out, levels, v, plots)  # the output helper draws them and writes the VTU files
     io.write_pvd(sol, out / "hertz_friction.pvd")  # meanwhile, beside the check
 
@@ -144,6 +146,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
         "loads": [{k: val for k, val in lv.items() if k != "contact"} for lv in levels],
         "c_over_a": [lv["c_over_a"] for lv in levels],
         "c_over_a_bracket": [lv["c_over_a_bracket"] for lv in levels],
+        "analytical_comparison": validity.comparison(invalid),
         **newton_log(sol),
         "ddm_vs_fd_rel_diff_P3": ddm_fd if fd_check else "not computed (--no-fd)",
         "adjoint": adj if adjoint else "not computed (use --adjoint)",
