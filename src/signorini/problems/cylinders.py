@@ -97,30 +97,37 @@ def _arc(x, R, side):
 def grid(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 24, ratio: float = 2 / 3,
          size: float = 15.0, zone: float = 1.5):
     """Grid lines of the two bodies: (x columns of the lower, of the upper, relative
-    depths of the lower's rows, of the upper's, b0) from the nominal values."""
-    nom = dict(DEFAULTS)
-    nom.update(nominal or {})
+    depths of the lower's rows, of the upper's, b0, W) from the nominal values."""
     check_mesh_options(refine, n_fine, size, zone)
     if not 0.1 <= ratio <= 10:
         raise InputError(f"ratio (upper/lower cell counts at the interface) must be in [0.1, 10], got {ratio}")
-    b0 = analytical(nom["P"], nom["R1"], nom["R2"], nom["E1"], nom["E2"], nom["nu1"], nom["nu2"])["b"]
-    W = WIDTH * min(nom["R1"], nom["R2"])
-    if size * b0 > W:
-        size = W / b0
+    b0, W, fine = extents(nominal, size=size, zone=zone)
     k = 2**refine
     growth = 1.2 ** (1.0 / k)
 
     def columns(n):
-        half = graded_coordinates(W, min(zone, 0.5 * size) * b0, n, growth)
+        half = graded_coordinates(W, fine, n, growth)
         return np.concatenate([-half[:0:-1], half])
 
     def rows(n):
-        d = graded_coordinates(W, min(zone, 0.5 * size) * b0 * 2 / 3, max(int(round(n * 2 / 3)), 1), growth)
+        d = graded_coordinates(W, fine * 2 / 3, max(int(round(n * 2 / 3)), 1), growth)
         return d / W  # relative depth 0 (at the arc) .. 1 (at the far face)
 
     n1 = n_fine * k
     n2 = max(int(round(n_fine * ratio)) * k, 1)
     return columns(n1), columns(n2), rows(n1), rows(n2), b0, W
+
+
+def extents(nominal: dict | None = None, *, size: float = 15.0, zone: float = 1.5):
+    """(b0, W, fine) of the grid sized by the nominal values: Hertz's half-width
+    b0, each body's half-width and depth W, and the half-width of the uniformly
+    fine zone at the contact (zone b0, at most half the bodies' width)."""
+    nom = {**DEFAULTS, **(nominal or {})}
+    b0 = analytical(nom["P"], nom["R1"], nom["R2"], nom["E1"], nom["E2"], nom["nu1"], nom["nu2"])["b"]
+    W = WIDTH * min(nom["R1"], nom["R2"])
+    if size * b0 > W:
+        size = W / b0
+    return b0, W, min(zone, 0.5 * size) * b0
 
 
 def touch_offset(xs1, xs2, R1, R2) -> float:

@@ -11,12 +11,13 @@ import numpy as np
 from ...contact.area import nodal_normals
 
 from ... import timing
+from .. import validity
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
 from ...post import files as io, plots
 from ...algorithms.coarse_to_fine import warn_failed_levels
 from ...problems import hertz
-from ...problems.cylinders import DEFAULTS, analytical, cylinders_problem, pressure, shear
+from ...problems.cylinders import DEFAULTS, analytical, cylinders_problem, extents, pressure, shear
 from ...problems.hertz_friction import stick_zone
 from ..options import (
     UNITS, Formatter, coarse_start_option, command_options, finish, fmt_coarse, fmt_fd,
@@ -83,7 +84,7 @@ def execute(args) -> int:
     print(f"Two cylinders ({s['mesh']['dofs']} DOFs, {s['steps']} increment(s)): "
           f"p0 = {s['p0']['computed']:.5g} (Hertz {s['p0']['analytical']:.5g}, "
           f"{100 * s['p0']['rel_error']:+.2f} %), b = {s['b']['computed']:.4g} "
-          f"(Hertz {s['b']['analytical']:.4g}){zone}; Newton iterations "
+          f"(Hertz {s['b']['analytical']:.4g}){zone}{validity.note(s)}; Newton iterations "
           f"{sum(s['newton_iterations'])}{fmt_coarse(s['coarse_start'])}; DDM vs FD (max rel. diff.): "
           f"{fmt_fd(s['ddm_vs_fd_rel_diff'])}; solver {s['solver']}")
     return finish(args, s)
@@ -143,6 +144,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
     closed = c["p_N"] > 0
     b_fe = 0.5 * float(c["x"][closed].max() - c["x"][closed].min()) if closed.any() else 0.0
     p0_fe = float(c["p_N"].max())
+    invalid = _validity(sol, b_fe, an["R"], pb)
     _figures(out, c, up, an, hv, friction, sensitivities)
     zone = None
     if friction:  # the stick half-width: both halves, interpolated (as the rigid frictional Hertz)
@@ -182,6 +184,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
                       "rel_error": zone["c"] / zone["b"] / (an["c"] / an["b"]) - 1,
                       "c": zone["c"], "c_brackets": zone["c_brackets"]}
                      if friction else "frictionless"),
+        "analytical_comparison": validity.comparison(invalid),
         **newton_log(sol),
         "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
         "fd_relative_step": fd_step,
@@ -189,6 +192,27 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
+
+
+#: what to change when the contact outgrows the bodies or their fine zone, both sized by
+#: the nominal values (there is no option for their size)
+_SMALLER = "reduce the load (--set P=...) or stiffen the bodies (--set E1=... --set E2=...)"
+
+
+def _validity(sol, b: float, R: float, pb) -> list[str]:
+    """The validity warnings (:mod:`signorini.app.validity`) of the contact
+    half-width ``b``: against the relative radius R = R1 R2 / (R1 + R2), the
+    bodies' half-width and depth (each body's, from its contact face) and the
+    fine zone."""
+    X, sets = pb.mesh.nodes, pb.mesh.node_sets
+    W = min(float(np.abs(X[sets[f], 0]).max()) for f in ("lower.top", "upper.bottom"))
+    return validity.check(
+        sol, b, [validity.half_space(W, "each body's half-width and depth",
+                                     "reduce the load (--set P=...): the bodies are sized by the "
+                                     "nominal radii", ", so the bodies are no longer half-spaces"),
+                 validity.fine_zone(extents()[2], _SMALLER)],
+        symbol="b", radius=R, radius_note=" (R = R1 R2/(R1 + R2))",
+        radius_hint="reduce the load P or increase R1 and R2")
 
 
 def _lower(sol, names) -> dict:

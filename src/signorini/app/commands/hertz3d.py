@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import timing
+from .. import validity
 from ...algorithms.coarse_to_fine import warn_failed_levels
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
@@ -92,7 +93,7 @@ def execute(args) -> int:
     print(f"Hertz {s['model']} ({s['mesh']['dofs']} DOFs, {s['steps']} increment(s)): "
           f"p0 = {s['p0']['computed']:.5g} (Hertz {s['p0']['analytical']:.5g}, "
           f"{100 * s['p0']['rel_error']:+.2f} %), a = {s['a']['computed']:.4g} "
-          f"(Hertz {s['a']['analytical']:.4g}){zone}; Newton iterations "
+          f"(Hertz {s['a']['analytical']:.4g}){zone}{validity.note(s)}; Newton iterations "
           f"{sum(s['newton_iterations'])}; DDM vs FD (max rel. diff.): "
           f"{fmt_fd(s['ddm_vs_fd_rel_diff'])}; solver {s['solver']}")
     print_adjoint(s)
@@ -149,6 +150,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, st
     closed = c["p_N"] > 0
     a_fe = float(c["r"][closed].max()) if closed.any() else 0.0
     p0_fe = float(c["p_N"].max())
+    a0 = analytical(DEFAULTS["P"], DEFAULTS["R"], DEFAULTS["E"], DEFAULTS["nu"])["a"]  # sizes the mesh
+    invalid = _validity(sol, a_fe, v, pb, zone * a0)
 
     timing.mark("output")
     _figures(out, c, an, v, friction, sensitivities)
@@ -187,6 +190,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, st
         "coarse_start": levels if levels else (skipped or "no coarser mesh"),
         "c_over_a": zone_info["c_over_a"] if friction else "frictionless",
         "c_over_a_bracket": zone_info["c_over_a_bracket"] if friction else "frictionless",
+        "analytical_comparison": validity.comparison(invalid),
         **newton_log(sol),
         "ddm_vs_fd_rel_diff": ddm_fd if fd_check else "not computed (--no-fd)",
         "adjoint": adj if adjoint else "not computed (use --adjoint)",
@@ -195,6 +199,17 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 8, st
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
+
+
+def _validity(sol, a: float, v: dict, pb, zone_width: float) -> list[str]:
+    """The validity warnings (:mod:`signorini.app.validity`) of the contact radius
+    ``a``: against R, the block (its width and depth, the same in both models) and
+    the fine zone (``zone_width``: its lateral extent)."""
+    X = pb.mesh.nodes
+    W = min(float(X[:, 0].max()), float(-X[:, -1].min()))
+    return validity.check(sol, a, [validity.half_space(W, "the block width and depth"),
+                                   validity.fine_zone(zone_width)],
+                          label="contact radius", radius=v["R"])
 
 
 def _contact_columns(sol, axisymmetric: bool) -> dict:

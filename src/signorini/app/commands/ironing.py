@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import timing
+from .. import validity
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
 from ...post import files as io, plots
@@ -132,6 +133,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, cells: int = CELLS,
     sliding = t > T_PRESS + 0.25 * (1.0 - T_PRESS)  # past the start of the slide
     ratio = F["F_T"][sliding] / F["F_N"][sliding] if sliding.any() else np.array([np.nan])
     changes = nonsmooth.partner_changes(sol)
+    _validity(sol, mesh_info["block_contact_cell_size"])
     summary = summary_header("converged", sol)
     summary.update({
         "params": v,
@@ -152,6 +154,31 @@ def run(out, params: dict | None = None, *, refine: int = 0, cells: int = CELLS,
         "time_wall_s": clock(),
     })
     return write_summary(out, summary, sol)
+
+
+def _validity(sol, h: float) -> list[str]:
+    """The validity warnings (:mod:`signorini.app.validity`) of the contact zone at
+    the end, measured from the die's centre: it must stay a block cell ``h``
+    inside the die's rounded face (beyond, the die's corners press into the
+    block) and inside the block's top (the problem's own checks keep the die on
+    the block, so this one only guards them); too few closed nodes. There is no
+    analytical solution to compare with."""
+    x = sol.current()[:, 0]
+    sets = sol.model.problem.mesh.node_sets
+    die, top = x[sets["die.bottom"]], x[sets["block.top"]]
+    centre = 0.5 * (die.min() + die.max())
+    c = sol.contact()
+    closed = c["x"][c["p_N"] > 0, 0]
+    if not closed.size:
+        return validity.check(sol, 0.0)
+    a = float(max(closed.max() - centre, centre - closed.min()))
+    return validity.check(sol, a, [
+        validity.edge(0.5 * float(die.max() - die.min()), h, "the die's rounded face",
+                      ", so the die's corners press into the block (a pressure singular there "
+                      "and mesh-dependent)", "press less deep (--set d=...)"),
+        validity.edge(float(min(centre - top.min(), top.max() - centre)), h, "the block's top",
+                      ", so the die presses on the block's corner", "slide less far (--set s=...)")],
+        label="contact half-width about the die's centre")
 
 
 def _block_top(sol) -> dict:
