@@ -55,7 +55,8 @@ def test_hertz3d_friction_3d_and_axisymmetric_models_agree(tmp_path):
     runs = {}
     for model in ("3d", "axi"):
         out = tmp_path / model
-        args = ["hertz3d", "--out", str(out), "--set", "mu=0.3", "--steps", "6", "--no-fd", "--block", "5", "-q"]
+        args = ["hertz3d", "--out", str(out), "--set", "mu=0.3", "--steps", "6", "--no-fd", "--block", "5",
+                "--n-fine", "8", "-q"]  # the same grid lines (the axisymmetric default is finer)
         assert main(args + (["--axisymmetric"] if model == "axi" else [])) == 0
         runs[model] = read(out)
     (a, sa), (b, sb) = runs["3d"], runs["axi"]

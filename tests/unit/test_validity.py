@@ -54,7 +54,7 @@ VALID = {
     "hertz": ["hertz"],
     "hertz-friction": ["hertz-friction"],
     "hertz3d": ["hertz3d", "--n-fine", "6", "--block", "6"],
-    "axisymmetric": ["hertz3d", "--axisymmetric", "--n-fine", "16"],
+    "axisymmetric": ["hertz3d", "--axisymmetric"],  # the default mesh
     "cylinders": ["cylinders", "--n-fine", "12"],
     # the default (96 cells, 50 increments) takes a minute; half its cells keep 10 closed nodes
     "ironing": ["ironing", "--cells", "48", "--steps", "12", "--set", "s=0.5", "--set", "d=0.12"],
