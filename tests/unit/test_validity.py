@@ -125,3 +125,24 @@ def test_check_within_every_limit_warns_nothing():
     assert validity.comparison([]) == {"valid": True, "why": []}
     assert validity.note({"analytical_comparison": validity.comparison([])}) == ""
     assert validity.note({}) == ""
+
+
+@pytest.mark.timeout(300)
+def test_a_problem_files_contact_reaching_the_end_of_its_surface_warns(tmp_path, capsys):
+    """examples/block.toml (a half model: its surface's end on the symmetry line is
+    the contact's centre) warns of nothing; under 30 times the load its contact
+    zone reaches the far end of the block's top, and summary.json says so."""
+    from pathlib import Path
+
+    example = Path(__file__).parents[2] / "examples" / "block.toml"
+    heavy = tmp_path / "heavy.toml"
+    heavy.write_text(example.read_text().replace("P = 2.0", "P = 60.0"))
+    for path, expect in ((example, False), (heavy, True)):
+        out = tmp_path / path.stem
+        assert main(["run", str(path), "--out", str(out), "-q"]) == 0
+        s = json.loads((out / "summary.json").read_text())
+        said = [w for w in s["warnings"] if "reaches the end of the contact surface" in w]
+        assert bool(said) == expect, s["warnings"]
+        if expect:
+            assert len(said) == 1 and "(2.0, 0.0)" in said[0]
+    capsys.readouterr()

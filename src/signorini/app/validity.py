@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from ..model import checks
 
 #: Hertz's half-space solution assumes a small contact zone, a << R
@@ -121,3 +123,37 @@ def note(summary: dict) -> str:
     they are not valid."""
     c = summary.get("analytical_comparison")
     return NOT_VALID if isinstance(c, dict) and not c.get("valid", True) else ""
+
+
+def surface_ends(sol) -> list[str]:
+    """Warn when a closed node of a 2-D contact surface (rigid obstacle or a pair's
+    slave) is an end of the surface: the contact zone then reaches the edge of the
+    body's face, and the surface may be too short to hold it (a problem file's
+    surface, where no fine zone or block size is known). An end on a symmetry
+    line (its displacement along the surface prescribed) is the contact's centre,
+    not an edge. Returns the warnings issued."""
+    m = sol.model
+    if m.dim != 2 or not sol.increments:
+        return []
+    X = sol.reference()
+    pres = set(np.asarray(m.layout.prescribed).tolist())
+    issued = []
+    for k, s in enumerate(m.surfaces):
+        e = np.asarray(s.edges)
+        ends, count = np.unique(e, return_counts=True)
+        c = sol.contact(surface=k)
+        closed = dict(zip(np.asarray(c["node"]).tolist(), np.asarray(c["p_N"]) > 0))
+        for n in ends[count == 1]:
+            row = e[np.any(e == n, axis=1)][0]
+            t = X[row[1]] - X[row[0]]
+            symmetry = any(2 * int(n) + j in pres and abs(t[j]) >= abs(t[1 - j]) for j in (0, 1))
+            if closed.get(int(n), False) and not symmetry:
+                name = s.contact.edges
+                issued.append(f"contact {name!r}: the contact zone reaches the end of the contact "
+                              f"surface (node {int(n)} at {tuple(round(float(v), 6) for v in X[n])} "
+                              "is closed), so the surface may be too short to hold the contact and "
+                              "the body's corner carries it; extend the contact surface or reduce "
+                              "the load")
+    for w in issued:
+        checks.warn(sol, w)
+    return issued

@@ -17,6 +17,7 @@ from ...algorithms.stepping import solve
 from ...linsolve import check_size
 from ...post import files as io
 from ... import timing
+from .. import validity
 from ..runner import keep_for_interrupt, prepare_output, use_solver, write_summary_json
 
 
@@ -183,6 +184,8 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
     if error is not None:
         summary["reason"] = str(error)
     if sol is not None:
+        if error is None:
+            validity.surface_ends(sol)
         summary["mesh"]["dofs"] = int(sol.model.n_dof)
         summary["increments"] = len(sol.increments)
         summary["load_factors"] = [float(inc.t) for inc in sol.increments]
