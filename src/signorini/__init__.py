@@ -32,7 +32,7 @@ else:
 _WHERE = {
     **dict.fromkeys(("NewtonOptions",), "algorithms.newton"),
     **dict.fromkeys(("Solution",), "algorithms.solution"),
-    **dict.fromkeys(("Start", "solve"), "algorithms.stepping"),
+    "Start": "algorithms.start", "solve": "algorithms.stepping",
     **dict.fromkeys(("AugmentedLagrangian", "Contact", "Coulomb", "Penalty", "equivalent_areas",
                      "pair"), "contact"),
     **dict.fromkeys(("Circle", "Line"), "contact.obstacles"),

@@ -12,6 +12,8 @@ from ..params import parse_assignment
 from ..problems import hertz, hertz_friction
 
 UNITS = "Units: mm, N/mm (force per unit thickness), N/mm² (MPa)."
+#: the units of a 3-D or axisymmetric command: its forces are whole forces
+UNITS_3D = "Units: mm, N (P: the sphere's whole force, in 3-D and axisymmetric alike), N/mm² (MPa)."
 
 
 class Formatter(argparse.HelpFormatter):

@@ -18,7 +18,7 @@ from ...problems import hertz
 from ...problems.hertz3d import DEFAULTS, analytical, hertz3d_problem, pressure, pressure_dR
 from ...problems.hertz_friction import stick_zone
 from ..options import (
-    UNITS, Formatter, adjoint_option, coarse_start_option, command_options, finish, fmt_fd,
+    UNITS_3D, Formatter, adjoint_option, coarse_start_option, command_options, finish, fmt_fd,
     newton_options, parse_sets, path_options, positive_float, positive_int, print_adjoint,
     solver_options, with_defaults)
 from ..runner import (
@@ -61,7 +61,7 @@ def add_parser(sub) -> None:
                     "against Hertz, c/a with friction, Newton log, DDM vs FD), pressure.png, "
                     "sensitivity.png (and traction.png with friction) and hertz3d.vtu. "
                     "--axisymmetric solves the same problem with the axisymmetric model and writes "
-                    "the same files. " + UNITS)
+                    "the same files. " + UNITS_3D)
     command_options(p, HERTZ3D_SET, example="mu=0.3",
                     refine="halve every cell N times (each level: 8x the unknowns in 3-D)")
     p.add_argument("--n-fine", type=positive_int, default=None, metavar="N",
