@@ -36,8 +36,10 @@ _WHERE = {
     **dict.fromkeys(("AugmentedLagrangian", "Contact", "Coulomb", "Penalty", "equivalent_areas",
                      "pair"), "contact"),
     **dict.fromkeys(("Circle", "Line"), "contact.obstacles"),
+    **dict.fromkeys(("Cylinder", "Implicit", "Plane", "Sphere"), "contact.obstacles3d"),
     **dict.fromkeys(("finite_difference",), "design.finite_differences"),
     **dict.fromkeys(("Gradient", "gradient"), "design.gradient"),
+    **dict.fromkeys(("Objective", "minimize"), "design.optimize"),
     **dict.fromkeys(("ConvergenceError", "InputError", "InvertedElementError",
                      "NonDifferentiableError", "ResourceError", "SignoriniError",
                      "SignoriniWarning", "SingularTangentError", "SolverError",
@@ -46,6 +48,7 @@ _WHERE = {
     **dict.fromkeys(("Axisymmetric", "PlaneStrain"), "fem.kinematics"),
     **dict.fromkeys(("Fixed", "Pressure", "Ramp", "Traction"), "fem.loads"),
     **dict.fromkeys(("Mesh", "graded_coordinates", "merge", "rectangle"), "fem.mesh"),
+    **dict.fromkeys(("Mesh3D", "box", "tetrahedra"), "fem.mesh3d"),
     **dict.fromkeys(("read_mesh",), "fem.meshfile"),
     **dict.fromkeys(("Bodies", "J2Plasticity", "LinearElastic", "NeoHooke"), "materials"),
     **dict.fromkeys(("Problem",), "model.problem"),
@@ -54,17 +57,21 @@ _WHERE = {
 }
 
 __all__ = [
-    # the problem: mesh, kinematics, element, material, supports and loads, contact
-    "Mesh", "rectangle", "graded_coordinates", "read_mesh", "merge",
+    # the problem: mesh (2-D, 3-D, from a file), kinematics (2-D only), element, material,
+    # supports and loads, contact (2-D obstacles, 3-D obstacles, laws, pairs of bodies)
+    "Mesh", "rectangle", "graded_coordinates", "merge", "Mesh3D", "box", "tetrahedra", "read_mesh",
     "PlaneStrain", "Axisymmetric", "Standard", "FBar",
     "LinearElastic", "NeoHooke", "J2Plasticity", "Bodies",
     "Fixed", "Pressure", "Traction", "Ramp",
-    "Circle", "Line", "Contact", "AugmentedLagrangian", "Coulomb", "Penalty", "equivalent_areas", "pair",
+    "Circle", "Line", "Plane", "Sphere", "Cylinder", "Implicit",
+    "Contact", "AugmentedLagrangian", "Coulomb", "Penalty", "equivalent_areas", "pair",
     "Problem",
     # solving
     "solve", "NewtonOptions", "Start", "Solution",
     # derivatives
     "DDM", "Adjoint", "FiniteDifferences", "gradient", "Gradient", "finite_difference",
+    # optimisation with those derivatives
+    "Objective", "minimize",
     # results
     "write_vtu", "write_pvd",
     # errors and warnings

@@ -1,6 +1,7 @@
 """Mesh input (signorini.fem.meshfile): gmsh and other meshio formats read into
-quadrilateral meshes with named edge and node sets, and clear errors for
-missing, empty, garbage, non-planar or triangle-only files."""
+quadrilateral meshes with named edge and node sets, or 3-D meshes of hexahedra or
+tetrahedra with named face and node sets, by one reader; clear errors for
+missing, empty, garbage, non-planar, triangle-only or wrong-dimension files."""
 
 import meshio
 import numpy as np
@@ -316,3 +317,32 @@ def test_the_right_dimension_reads(tmp_path, kind, dim, cls):
     b = read_mesh(path)
     assert type(a).__name__ == type(b).__name__ == cls
     np.testing.assert_array_equal(a.cells, b.cells)
+
+
+@pytest.mark.parametrize("tets", [False, True])
+def test_one_public_reader_for_2d_and_3d_files(tmp_path, tets):
+    """``signorini.read_mesh`` reads a 2-D file into a Mesh and a 3-D file into a
+    Mesh3D by the file's cells; ``dim=`` demands one and gives the same mesh;
+    ``read_mesh_3d`` is ``read_mesh(dim=3)``: same cells, nodes, face and node sets."""
+    assert sg.read_mesh is read_mesh
+    _write_gmsh(tmp_path / "flat.msh")
+    _write_gmsh_3d(tmp_path / "solid.msh", tets=tets)
+    flat, solid = sg.read_mesh(tmp_path / "flat.msh"), sg.read_mesh(tmp_path / "solid.msh")
+    assert type(flat) is sg.Mesh and type(solid) is sg.Mesh3D
+    assert flat.nodes.shape[1] == 2 and solid.nodes.shape[1] == 3
+    assert solid.cells.shape[1] == (4 if tets else 8)
+    for path, mesh, dim in ((tmp_path / "flat.msh", flat, 2), (tmp_path / "solid.msh", solid, 3)):
+        readers = [sg.read_mesh(path, dim=dim)] + ([read_mesh_3d(path)] if dim == 3 else [])
+        for again in readers:
+            assert type(again) is type(mesh)
+            np.testing.assert_array_equal(again.nodes, mesh.nodes)
+            np.testing.assert_array_equal(again.cells, mesh.cells)
+            assert sorted(again.node_sets) == sorted(mesh.node_sets)
+            for name in mesh.node_sets:
+                np.testing.assert_array_equal(again.node_set(name), mesh.node_set(name))
+        with pytest.raises(sg.InputError) as err:
+            sg.read_mesh(path, dim=5 - dim)
+        assert err.value.dim == dim
+    assert sorted(solid.face_sets) == ["left", "top"] and sorted(flat.edge_sets) == ["bottom", "top"]
+    with pytest.raises(sg.InputError, match="dim must be 2, 3 or None"):
+        sg.read_mesh(tmp_path / "flat.msh", dim=1)

@@ -84,30 +84,43 @@ def _meshio_read(path: Path):
 
 
 def read_mesh(path, dim: int | None = None) -> "Mesh | Mesh3D":
-    """Read a Q4 mesh (gmsh .msh or any meshio format) with named sets; a file of
-    hexahedra or tetrahedra gives a 3-D mesh (:func:`read_mesh_3d`).
+    """Read a mesh file (gmsh .msh or any format meshio knows) with its named sets:
+    a 2-D file gives a :class:`~signorini.fem.mesh.Mesh`, a 3-D file a
+    :class:`~signorini.fem.mesh3d.Mesh3D`.
 
-    ``dim`` (2 or 3) asks for a mesh of that dimension: a file of the other one is
-    an error (a file's dimension is that of its cells: 3 if it has volume cells,
-    2 if surface cells and no volume cells), before its cells are checked.
+    A file's dimension is that of its cells: 3 if it has volume cells, 2 if it has
+    surface cells and no volume cells. ``dim`` (2 or 3) demands one: a file of the
+    other dimension is then an error, before its cells are checked (a plane-strain
+    or axisymmetric problem asks for ``dim=2``). ``None`` (the default) takes either.
 
-    Quadrilateral cells become the mesh; every named physical group of line
-    elements (gmsh ``$PhysicalNames``) becomes an edge set (oriented
-    counter-clockwise from its cell) and a node set of the same name; named
-    groups of vertex elements become node sets, and named groups of
-    quadrilaterals (physical surfaces: the bodies of a file with several) the
-    node set of their cells (what :class:`~signorini.materials.Bodies` names). Cells are renumbered
-    counter-clockwise if needed. Nodes that belong to no quadrilateral (gmsh
-    writes one for every geometry point, e.g. the centre of an arc) are
-    dropped and the remaining nodes renumbered in file order, since they
-    would carry no stiffness.
+    **2-D** (plane strain and axisymmetry, the mesh in the x-y plane, z = 0; for
+    axisymmetry x is the radius r and y the axis z): 4-node quadrilaterals become
+    the cells, renumbered counter-clockwise if needed. Every named physical group
+    of line elements (gmsh ``$PhysicalNames``) becomes an edge set (oriented
+    counter-clockwise from its cell: the body on the left) and a node set of the
+    same name; named groups of vertex elements become node sets, and named groups
+    of quadrilaterals (physical surfaces: the bodies of a file with several) the
+    node set of their cells (what :class:`~signorini.materials.Bodies` names).
+
+    **3-D**: 8-node hexahedra or 4-node tetrahedra (one kind per file) become the
+    cells, renumbered where their volume is negative. Every named physical group of
+    faces (quadrilaterals for hexahedra, triangles for tetrahedra) becomes a face
+    set, numbered outward as in the cell that owns each face, and a node set of the
+    same name; named groups of volumes (the bodies), lines and points become node
+    sets.
+
+    In both, nodes that belong to no cell (gmsh writes one for every geometry
+    point, e.g. the centre of an arc) are dropped and the remaining nodes
+    renumbered in file order, since they would carry no stiffness; the node set
+    ``"all"`` holds every node.
 
     Raises:
         InputError: the file is missing, empty, of an unknown format, not a
             valid mesh, has no cells of a body (only lines or points), is not of
             dimension ``dim`` (the error's ``dim`` attribute is then the file's
-            dimension), not planar, without quadrilaterals, or a set is not on the
-            boundary. The message names the file.
+            dimension); a 2-D file that is not planar or has no quadrilaterals; a
+            3-D file that mixes hexahedra and tetrahedra or has other volume
+            cells; a set that is not on the boundary. The message names the file.
     """
 
     if dim not in (None, 2, 3):
@@ -263,20 +276,11 @@ _MIRROR = {"hexahedron": [4, 5, 6, 7, 0, 1, 2, 3], "tetra": [0, 2, 1, 3]}
 
 
 def read_mesh_3d(path) -> Mesh3D:
-    """Read a mesh of 8-node hexahedra or 4-node tetrahedra (gmsh .msh or any
-    meshio format) with named sets.
-
-    The volume cells become the mesh (one kind per file; cells of negative volume
-    are renumbered); every named physical group of faces (quadrilaterals for
-    hexahedra, triangles for tetrahedra) becomes a face set, numbered outward as
-    in the cell that owns each face, and a node set of the same name; named
-    groups of volumes, lines and points become node sets. Nodes that belong to no
-    cell are dropped and the rest renumbered in file order.
-
-    Raises:
-        InputError: as :func:`read_mesh`; also for a 2-D mesh (no volume cells),
-            mixed or unsupported cells and a face group off the boundary. The
-            message names the file and the set.
+    """:func:`read_mesh` with ``dim=3``: a 3-D mesh of 8-node hexahedra or 4-node
+    tetrahedra with its face and node sets, and an
+    :class:`~signorini.errors.InputError` for a 2-D file (no volume cells).
+    ``signorini.read_mesh(path)`` reads a 3-D file the same way; this name is kept
+    for the code that calls it.
     """
     return read_mesh(path, dim=3)
 
