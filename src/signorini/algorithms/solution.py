@@ -50,7 +50,12 @@ class Increment:
 class Solution:
     """Converged increments of a solve and everything derived from them.
 
-    Index ``i`` selects an increment (default ``-1``: the last one).
+    Index ``i`` selects an increment (default ``-1``: the last one), ``surface``
+    a contact surface (the index in ``Problem.contact``, default 0). Nodal arrays
+    are (n_nodes, dim): dim = 2 in 2-D, components (x, y) in plane strain and
+    (r, z) in axisymmetry; dim = 3, (x, y, z), on a 3-D mesh. Forces (reactions,
+    their sensitivities) are per unit thickness in plane strain, over the whole
+    circumference in axisymmetry, whole forces in 3-D.
     """
     def __init__(self, model, params: dict, names: list[str]):
         self.model = model
@@ -65,7 +70,7 @@ class Solution:
         self.solver: str | None = None  # linear solver used (``auto`` resolved)
         self.linear_solver = None  # that solver object
         self.symmetric: bool | None = None  # symmetric factorisation of the tangent?
-        self.shape_gradient = None  # (n_nodes, 2) adjoint gradient to write with the last increment
+        self.shape_gradient = None  # (n_nodes, dim) adjoint gradient written with the last increment
         self.jax_params = as_jax(params)
 
     # -------------------------------------------------------------- basics
@@ -97,7 +102,7 @@ class Solution:
         return [inc.newton.iterations for inc in self.increments]
 
     def displacement(self, i: int = -1) -> np.ndarray:
-        """(n_nodes, 2) nodal displacements."""
+        """(n_nodes, dim) nodal displacements (u_x, u_y[, u_z]; axisymmetric: u_r, u_z)."""
         return self._inc(i).w[: self.model.dim * self.model.n_nodes].reshape(-1, self.model.dim)
 
     def reference(self) -> np.ndarray:
@@ -109,8 +114,10 @@ class Solution:
         return self.reference() + self.displacement(i)
 
     def multipliers(self, i: int = -1, surface: int = 0) -> np.ndarray:
-        """(nc, m) contact multipliers of a surface (m = 1 frictionless: lam_N,
-        m = 2 with friction: lam_N, lam_T; nominal tractions, lam_N <= 0)."""
+        """(nc, m) contact multipliers of a surface's nodes, nominal tractions
+        (lam_N <= 0): m = 1 frictionless (lam_N), m = 0 with :class:`~signorini.Penalty`;
+        with friction m = 2 in 2-D (lam_N, lam_T) and m = 3 in 3-D (lam_N, lam_T1,
+        lam_T2 in the tangent basis ``t1``, ``t2`` of :meth:`contact`)."""
         s = self._surface(surface)
         w = self._inc(i).w
         return w[s.lam_offset: s.lam_offset + s.nodes.size * s.n_mult].reshape(s.nodes.size, s.n_mult)
@@ -123,7 +130,7 @@ class Solution:
         return r.reshape(-1, d)
 
     def reaction_sensitivity(self, name: str, i: int = -1) -> np.ndarray:
-        """(n_nodes, 2) DDM sensitivity of :meth:`reactions` (0 where free).
+        """(n_nodes, dim) DDM sensitivity of :meth:`reactions` (0 where free).
 
         With history (friction) the residual also depends on the state before the
         increment, so its tangent D state_n / D phi enters the JVP (docs/theory.md §1)."""
@@ -218,12 +225,28 @@ class Solution:
         return self.evaluate(fn, i, with_sensitivities, key, with_state=False)
 
     def contact(self, i: int = -1, surface: int = 0) -> dict:
-        """Per contact node: ``node, x_ref, x, gap, p_N, p_T, area`` and
-        ``dp_N_d<name>``, ``dp_T_d<name>``, ``dgap_d<name>`` for every design parameter;
-        with friction also ``status`` (``open``/``stick``/``slip``) and ``slip`` (g_T of
-        the increment). In 3-D, p_T and slip have two components, in the basis
-        ``t1``, ``t2`` given with ``normal`` and the ``traction`` vector (each
-        (nc, 3), :meth:`_traction_vectors`)."""
+        """The contact surface's nodes at increment ``i``: a dict of arrays, one row
+        per contact node (nc rows).
+
+        * ``node`` (nc,): the mesh nodes; ``x_ref``, ``x`` (nc, dim): their
+          reference and current positions.
+        * ``gap`` (nc,) (>= 0: open), ``p_N`` (nc,): the contact pressure (>= 0);
+          ``area`` (nc,): the equivalent area A_S (per unit thickness in plane
+          strain, of the surface of revolution in axisymmetry, of the faces in
+          3-D), so that ``sum(area * p_N)`` is the contact force.
+        * ``p_T``: the tangential traction on the body, (nc,) in 2-D (along the
+          obstacle's tangent), (nc, 2) in 3-D with friction (in the basis ``t1``,
+          ``t2``); 0 without friction.
+        * ``dp_N_d<name>``, ``dp_T_d<name>``, ``dgap_d<name>`` for every parameter
+          of the solve: their DDM sensitivities, shaped as the values.
+        * With friction: ``status`` (nc,) ``"open"``, ``"stick"`` or ``"slip"``,
+          and ``slip``, the slip g_T of the increment ((nc,) in 2-D, (nc, 2) in
+          3-D in the basis ``t1``, ``t2``).
+        * In 3-D: ``normal`` (the obstacle's unit normal n', into the body),
+          ``t1``, ``t2`` (the tangent basis) and ``traction`` (the contact force
+          on the body per reference area, a vector: what the supports balance),
+          each (nc, 3).
+        """
         m = self.model
         s = self._surface(surface)
         val, sens = self._contact_fields(i, surface)
@@ -276,11 +299,13 @@ class Solution:
         return val, {n: {"gap": g[k], "p_N": pN[k], "p_T": pT[k]} for k, n in enumerate(self.names)}
 
     def stress(self, i: int = -1):
-        """Element-averaged Cauchy stress (n_cells, 3, 3) and its sensitivities
-        (with a material history: the stress of the update from the state before
-        increment i, whose sensitivity the JVP carries too): a response program of
-        the model on a mesh evaluated by whole-mesh programs, else the element
-        kind's programs."""
+        """(Element-averaged Cauchy stress (n_cells, 3, 3), {name: its DDM
+        sensitivity}); in 2-D the full tensor too, its [2, 2] entry the
+        out-of-plane stress sigma_zz in plane strain and the hoop stress in
+        axisymmetry. With a material history it is the stress of the update from
+        the state before increment i, whose sensitivity the JVP carries too. A
+        response program of the model on a mesh evaluated by whole-mesh programs,
+        else the element kind's programs."""
         m, inc = self.model, self._inc(i)
         if not m.by_kind:
             if m.n_state:

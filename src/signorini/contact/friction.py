@@ -1,5 +1,9 @@
 """Coulomb friction by the Alart-Curnier augmented Lagrangian (docs/theory.md §3).
 
+This is the 2-D law (plane strain and axisymmetry); on a 3-D contact surface the
+same :class:`Coulomb` becomes the Coulomb disc of
+:mod:`signorini.contact.friction3d` (two tangential multipliers per node).
+
 Per contact node S two multipliers are global unknowns: lam_N (<= 0, nominal
 normal traction) and lam_T (tangential traction). With the gaps
 
@@ -69,11 +73,21 @@ STATUS_NAMES = ("open", "stick", "slip")
 class Coulomb(ContactLawDefaults):
     """Coulomb friction on a rigid obstacle, Alart-Curnier augmented Lagrangian.
 
-    Two multipliers per contact node, (lam_N, lam_T). The contact node's slip
-    coordinate after the previous converged increment, s_n, is history data
-    (carried and differentiated by :class:`~signorini.model.Model`). Nodes whose
-    tangential displacement is prescribed (a symmetry line) get no friction:
-    their lam_T equation is lam_T = 0 (docs/theory.md §3.6).
+    In 2-D (plane strain and axisymmetry) two multipliers per contact node,
+    (lam_N, lam_T): one tangential multiplier, along the obstacle's tangent in
+    the plane of the model ((x, y), or (r, z) in axisymmetry). The contact
+    node's slip coordinate after the previous converged increment, s_n, is
+    history data (carried and differentiated by :class:`~signorini.model.Model`).
+    Nodes whose tangential displacement is prescribed (a symmetry line) get no
+    friction: their lam_T equation is lam_T = 0 (docs/theory.md §3.6).
+
+    In 3-D the same ``Coulomb(mu, eps_n, eps_t)`` is the Coulomb disc
+    (:class:`~signorini.contact.friction3d.CoulombDisc`, made from it when the
+    problem is built): three multipliers per node, lam_N and a tangential
+    traction of two components (lam_T1, lam_T2) in the basis (t1, t2) of the
+    obstacle's tangent plane, held inside the disc |lam_T| <= mu |lam_N|
+    (docs/theory.md §12.4); :meth:`~signorini.algorithms.solution.Solution.contact`
+    gives p_T and the slip with two components and the basis.
 
     Attributes:
         mu: friction coefficient (>= 0).

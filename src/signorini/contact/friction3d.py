@@ -52,6 +52,10 @@ def reference_axis(N):
 class CoulombDisc(Coulomb):
     """Coulomb friction on a rigid 3-D obstacle (three multipliers per node).
 
+    A user writes :class:`~signorini.contact.friction.Coulomb` (``sg.Coulomb``) in
+    3-D as in 2-D: a 3-D contact surface turns it into this law with the same
+    ``mu``, ``eps_n`` and ``eps_t`` when the problem is built (:func:`disc`).
+
     The node's history is ``hist = (y_n (3,), e_S (3,), tangential (2,)[,
     case flags])``: the closest point after the previous increment, the fixed
     axis of its tangent basis and which of the two tangential multipliers the

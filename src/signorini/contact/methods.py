@@ -111,15 +111,31 @@ class Penalty(_Regularised):
 
 @dataclass(frozen=True)
 class Contact:
-    """A contact surface: a boundary-edge set of the body against a rigid obstacle.
+    """A contact surface: a boundary set of the body against a rigid obstacle
+    (contact between two bodies: :func:`~signorini.contact.mortar.pair`).
 
     Attributes:
-        obstacle: :class:`~signorini.contact.obstacles.Circle` or :class:`~signorini.contact.obstacles.Line`.
-        edges: name of the mesh edge set whose nodes are contact nodes.
-        method: :class:`AugmentedLagrangian` (default) or :class:`Penalty`.
+        obstacle: in 2-D (plane strain in the (x, y) plane, axisymmetry in the
+            (r, z) half plane) a :class:`~signorini.contact.obstacles.Circle` (a
+            cylinder in plane strain; a torus or, centred on the axis, a sphere
+            in axisymmetry) or a :class:`~signorini.contact.obstacles.Line` (a
+            flat die; a cone, a plane or a cylinder in axisymmetry); in 3-D a
+            :class:`~signorini.contact.obstacles3d.Plane`,
+            :class:`~signorini.contact.obstacles3d.Sphere`,
+            :class:`~signorini.contact.obstacles3d.Cylinder` or
+            :class:`~signorini.contact.obstacles3d.Implicit` (a signed-distance
+            function; it works in 2-D too).
+        edges: name of the boundary set whose nodes are the contact nodes: an
+            edge set of a 2-D mesh, a face set of a 3-D one.
+        method: the contact law: :class:`AugmentedLagrangian` (default,
+            frictionless, one multiplier per node), :class:`Penalty`
+            (frictionless, no multiplier) or
+            :class:`~signorini.contact.friction.Coulomb` (friction: in 2-D one
+            tangential multiplier per node, in 3-D two, on the Coulomb disc).
         kinematics: ``"finite"`` (gap at the current position X + u),
             ``"linear"`` (gap and slip linearised about X in the frame of the
-            moving obstacle: geometrically linear analysis, docs/theory.md §6.3)
+            moving obstacle: geometrically linear analysis, docs/theory.md §6.3;
+            in 3-D the slip in the body's reference tangent plane, §12.4)
             or ``"auto"``: linear with a small-strain material, finite otherwise.
     """
 

@@ -1,5 +1,12 @@
 """Rigid obstacles in three dimensions, and a user-defined surface in two or three.
 
+:class:`Plane`, :class:`Sphere` and :class:`Cylinder` are obstacles of a 3-D mesh
+(:class:`~signorini.fem.mesh3d.Mesh3D`); a 2-D problem, plane strain or
+axisymmetric, uses :class:`~signorini.contact.obstacles.Line` and
+:class:`~signorini.contact.obstacles.Circle`. :class:`Implicit` works with either:
+in 3-D with any contact law, friction included (the Coulomb disc), in 2-D
+frictionless (it has no slip coordinate along a line).
+
 Each obstacle gives, for a point ``x`` and its resolved geometry ``geo =
 obstacle.geometry(params, t)``, the gap ``gap(x, geo)`` (>= 0: separated), the
 unit normal ``normal(x, geo)`` pointing from the obstacle into the body, and the
@@ -58,7 +65,7 @@ class _Surface:
 class Plane(_Surface):
     """Rigid plane through ``point`` (moving as ``point + t * motion``) with the
     unit normal ``normal_vector`` (normalised on use) pointing into the body: a
-    flat die."""
+    flat die (3-D; in 2-D: :class:`~signorini.contact.obstacles.Line`)."""
 
     point: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
     normal_vector: tuple[Spec, Spec, Spec] = (0.0, 0.0, -1.0)
@@ -91,7 +98,8 @@ class Plane(_Surface):
 @dataclass(frozen=True)
 class Sphere(_Surface):
     """Rigid sphere of radius ``radius`` centred at ``centre + t * motion``; the
-    body lies outside."""
+    body lies outside (3-D; an axisymmetric model of a sphere on the axis:
+    :class:`~signorini.contact.obstacles.Circle` centred at r = 0)."""
 
     radius: Spec = "R"
     centre: tuple[Spec, Spec, Spec] = (0.0, 0.0, "R")
@@ -125,7 +133,9 @@ class Sphere(_Surface):
 @dataclass(frozen=True)
 class Cylinder(_Surface):
     """Rigid circular cylinder of radius ``radius`` around the axis through
-    ``centre + t * motion`` along ``axis`` (normalised on use); the body lies outside."""
+    ``centre + t * motion`` along ``axis`` (normalised on use); the body lies
+    outside (3-D; a plane-strain model of a long cylinder:
+    :class:`~signorini.contact.obstacles.Circle`)."""
 
     radius: Spec = "R"
     centre: tuple[Spec, Spec, Spec] = (0.0, 0.0, "R")
@@ -171,13 +181,18 @@ class Implicit(_Surface):
     function of the point ``y`` relative to the obstacle's reference point
     (``origin + t * motion``) and of the dict ``p`` of the values of
     ``parameters`` (name -> parameter spec), positive outside the obstacle (where
-    the body is). Works with two or three coordinates.
+    the body is). Works with two coordinates (a 2-D problem: (x, y) in plane
+    strain, (r, z) in axisymmetry; frictionless laws only) or three (a 3-D mesh;
+    every law, Coulomb friction included); ``origin`` and ``motion`` have as many.
 
     The gap is the function's value, the normal its normalised gradient
     (autodiff), the closest point ``y - g n`` (exact when the function is a
     distance; to first order in g otherwise). Example, a sphere of radius ``R``::
 
-        Implicit(lambda y, p: jnp.sqrt(y @ y) - p["R"], {"R": "R"}, origin=(0, 0, "R"))
+        import jax.numpy as jnp
+        import signorini as sg
+
+        sg.Implicit(lambda y, p: jnp.sqrt(y @ y) - p["R"], {"R": "R"}, origin=(0, 0, "R"))
     """
 
     distance: Callable

@@ -1,18 +1,32 @@
-"""Design optimisation with exact DDM gradients (paper §5.3).
+"""Design optimisation with exact gradients (paper §5.3).
 
-:class:`Objective` turns a :class:`~signorini.model.problem.Problem`, a list of
-parameter names and a response into the ``fun``/``jac`` pair that
-:func:`scipy.optimize.minimize` expects::
+:class:`Objective` turns a :class:`~signorini.model.problem.Problem`, the names of
+the design parameters and a scalar response into the ``fun``/``jac`` pair that
+:func:`scipy.optimize.minimize` expects; :func:`minimize` runs it::
 
-    obj = Objective(problem, ["phi0", "phi1"], lambda model: my_response(model), steps=20)
-    res = minimize(obj, x0, method="BFGS", gtol=1e-8)
+    import signorini as sg
+
+    obj = sg.Objective(problem, wrt=["phi0", "phi1"], response=lambda model: my_response(model),
+                       method=sg.DDM(), steps=20)
+    res = sg.minimize(obj, x0, method="BFGS", gtol=1e-8)
     res.x, res.fun, res.iterations_log, obj.records, obj.write_csv("history.csv")
 
+The problem may be plane-strain, axisymmetric or 3-D: the objective solves it as
+:func:`signorini.solve` does and takes the response ``fn(w, params, t)`` of its
+unknowns (see :meth:`~signorini.algorithms.solution.Solution.response`), the same
+in every dimension.
+
 * **One solve per design point.** ``fun(x)`` and ``jac(x)`` share one
-  :func:`signorini.solve` with DDM sensitivities of the named parameters:
-  the first call at a point solves, every later call at the bit-identical
-  point (SciPy's usual fun-then-jac pattern, the callback) is served from a
-  cache keyed by the bytes of x.
+  :func:`signorini.solve` of ``problem.with_params(**dict(zip(wrt, x)))``; the
+  first call at a point solves, every later call at the bit-identical point
+  (SciPy's usual fun-then-jac pattern, the callback) is served from a cache
+  keyed by the bytes of x.
+* **The gradient, by the objective's** ``method``: :class:`~signorini.DDM`
+  (default: the solve carries the DDM sensitivities of the design parameters),
+  :class:`~signorini.Adjoint` (the solve, then one backward pass for all of
+  them) or :class:`~signorini.FiniteDifferences` (central differences of the
+  value, two more solves per parameter with the method's step, one-sided where
+  a perturbed solve fails: for comparing cost and accuracy).
 * **Every evaluation is recorded** (:class:`Evaluation`: x, F, gradient,
   Newton iterations, converged increments, wall time, status) in
   :attr:`Objective.records`; :meth:`Objective.write_csv` writes them, and with
@@ -41,9 +55,6 @@ parameter names and a response into the ``fun``/``jac`` pair that
   reason. With no successful evaluation yet (and no ``failure_value``) the
   error is raised: an optimisation cannot start from a design that cannot be
   solved. ``failure="raise"`` re-raises every failure.
-* ``gradient_mode="fd"`` replaces the DDM gradient by central differences of
-  ``fun`` (2 solves per parameter, step ``fd_step * max(|x_i|, 1)``; solves
-  without sensitivities), for comparing cost and accuracy.
 
 :func:`minimize` wraps :func:`scipy.optimize.minimize` (BFGS, L-BFGS-B,
 SLSQP; bounds and constraints passed through), refuses a start point that
@@ -216,7 +227,9 @@ class Objective(ObjectiveEvaluation):
         return {**self.problem.params, **dict(zip(self.names, (float(v) for v in self.point(x))))}
 
     def evaluate(self, x) -> Evaluation:
-        """The (cached) evaluation at x: value, and in ``"ddm"`` mode the gradient."""
+        """The (cached) evaluation at x: the value, and the gradient with a
+        :class:`~signorini.DDM` or :class:`~signorini.Adjoint` method (with
+        :class:`~signorini.FiniteDifferences`, :meth:`jac` adds the differences)."""
         x = self.point(x)
         k = x.tobytes()
         ev = self._cache.get(k)
@@ -252,8 +265,8 @@ class Objective(ObjectiveEvaluation):
 
     @property
     def best(self) -> Evaluation | None:
-        """The successful evaluation of the lowest F with a gradient (``"ddm"``) or
-        any successful value evaluation (``"fd"``)."""
+        """The successful evaluation of the lowest F among the design points (the
+        perturbed points of finite differences left out); None before the first."""
         good = [r for r in self.records if r.ok and r.kind != "fd"]
         return min(good, key=lambda r: r.F) if good else None
 

@@ -1,7 +1,9 @@
 """Prescribed displacements and boundary loads (dead loads, proportional stepping).
 
-Loads are integrated consistently with the kinematics (per unit thickness in
-plane strain, over the full circumference 2 pi R in axisymmetry).
+A load acts on a named boundary set of the mesh: an edge set of a 2-D mesh, a
+face set of a 3-D one. Loads are integrated consistently with the kinematics:
+per unit thickness in plane strain, over the full circumference 2 pi R in
+axisymmetry, over the reference faces in 3-D.
 
 Every value is a parameter spec (see :mod:`signorini.params`) multiplied by a
 ``ramp(t)`` of the load factor t in [0, 1] (default: ``t``, proportional loading).
@@ -56,8 +58,14 @@ def _edge_weights(X, edges, kinematics):
 
 @dataclass(frozen=True)
 class Fixed:
-    """Prescribed displacement ``value * ramp(t)`` of component ``component``
-    (0 = x / r, 1 = y / z) on the nodes of ``node_set``."""
+    """Prescribed displacement ``value * ramp(t)`` of component ``component`` on
+    the nodes of ``node_set``.
+
+    The component is 0 or 1 in 2-D: in plane strain u_x, u_y; in axisymmetry
+    u_r (radial; nodes on the axis need ``Fixed(..., 0)``) and u_z (axial). In
+    3-D it is 0, 1 or 2: u_x, u_y, u_z. A symmetry plane or line holds the
+    component normal to it, e.g. ``Fixed("x0", 0)`` on the plane x = 0.
+    """
     node_set: str
     component: int
     value: Spec = 0.0
@@ -69,12 +77,14 @@ class Fixed:
 
 @dataclass(frozen=True)
 class Pressure:
-    """Uniform nominal pressure on an edge set, or a face set of a 3-D body
-    (dead load, reference normal).
+    """Uniform nominal pressure on the boundary set ``edges``: an edge set of a
+    2-D mesh, a face set of a 3-D one (dead load along the reference normal).
 
     Positive pressure pushes into the body. With ``resultant=True`` the value is
-    the resultant force (per unit thickness) and the pressure is value / length
-    of the edge set in the reference configuration.
+    the resultant force and the pressure is value / the reference area of the
+    set: in plane strain a force per unit thickness over the edges' length; in
+    axisymmetry the force over the whole circumference, over the surface of
+    revolution (2 pi R ds); in 3-D the force over the faces' area.
     """
     edges: str
     value: Spec
@@ -104,10 +114,14 @@ class Pressure:
 
 @dataclass(frozen=True)
 class Traction:
-    """Uniform nominal traction vector on an edge set, or a face set of a 3-D
-    body (dead load; then three components).
+    """Uniform nominal traction vector on the boundary set ``edges``: an edge set
+    of a 2-D mesh, a face set of a 3-D one (dead load).
 
-    With ``resultant=True`` the value is the resultant force vector.
+    ``value`` has two components in 2-D, (t_x, t_y) in plane strain and (t_r,
+    t_z) in axisymmetry, and three, (t_x, t_y, t_z), in 3-D; each a number or a
+    parameter name. With ``resultant=True`` the value is the resultant force
+    vector, divided by the reference area of the set as for :class:`Pressure`
+    (per unit thickness in plane strain, the whole circumference in axisymmetry).
     """
     edges: str
     value: tuple[Spec, Spec]
@@ -127,6 +141,8 @@ class Traction:
         return tuple(self.value)
 
     def nodal_forces(self, X, edges: np.ndarray, params, t, kinematics=PLANE_STRAIN):
+        """(n_edges, 2 ends, 2) consistent nodal forces of the load at t; on a 3-D
+        body ``edges`` are faces and the forces (n_faces, k, 3)."""
         if len(self.value) != X.shape[-1]:
             raise InputError(f"Traction({self.edges!r}): a {X.shape[-1]}-D body needs "
                              f"{X.shape[-1]} components, got {len(self.value)}")

@@ -22,7 +22,10 @@ from .solid import CellType, cell_type
 
 @dataclass(frozen=True)
 class Mesh3D(Cells):
-    """A 3-D mesh of hexahedra or tetrahedra.
+    """A 3-D mesh of hexahedra or tetrahedra (the 2-D one, for plane strain and
+    axisymmetry, is :class:`~signorini.fem.mesh.Mesh`). Made by :func:`box` and
+    :func:`tetrahedra`, or read from a file by :func:`signorini.read_mesh`; a
+    :class:`~signorini.model.problem.Problem` on it is 3-D, without kinematics.
 
     Attributes:
         nodes: (n_nodes, 3) reference coordinates.
@@ -142,7 +145,8 @@ def check_cells(nodes: np.ndarray, cells: np.ndarray, what: str = "mesh") -> Non
 
 def box(xs, ys, zs) -> Mesh3D:
     """Structured hexahedral mesh on the tensor grid ``xs`` x ``ys`` x ``zs``
-    (each increasing; graded grids from :func:`signorini.fem.mesh.graded_coordinates`).
+    (each increasing; graded grids from :func:`signorini.fem.mesh.graded_coordinates`;
+    the 2-D counterpart is :func:`signorini.fem.mesh.rectangle`).
 
     Node and face sets: ``x0``, ``x1``, ``y0``, ``y1``, ``z0``, ``z1`` (the
     faces at the smallest and largest x, y, z) and the node set ``all``.

@@ -24,25 +24,38 @@ from ..interfaces import ContactLaw, ElementFormulation, Kinematics, Material, O
 
 @dataclass(frozen=True)
 class Problem:
-    """A contact problem.
+    """A contact problem: a 2-D one (plane strain or axisymmetric) on a
+    :class:`~signorini.fem.mesh.Mesh` of quadrilaterals, or a 3-D one on a
+    :class:`~signorini.fem.mesh3d.Mesh3D` of hexahedra or tetrahedra.
 
     Attributes:
-        mesh: the reference mesh (at the nominal parameter values).
+        mesh: the reference mesh (at the nominal parameter values): 2-D, in the
+            (x, y) plane, or for axisymmetry the (r, z) half plane r >= 0; or 3-D.
         material: e.g. :class:`~signorini.materials.LinearElastic`.
         params: name -> nominal value of every named parameter.
-        fixed: prescribed displacements (:class:`~signorini.fem.loads.Fixed`).
-        loads: boundary loads (:class:`~signorini.fem.loads.Pressure`, ``Traction``).
-        contact: contact surfaces (:class:`~signorini.contact.Contact`).
+        fixed: prescribed displacements (:class:`~signorini.fem.loads.Fixed`:
+            components 0, 1 in 2-D, 0, 1, 2 in 3-D).
+        loads: boundary loads (:class:`~signorini.fem.loads.Pressure`, ``Traction``)
+            on edge sets in 2-D, face sets in 3-D.
+        contact: contact surfaces (:class:`~signorini.contact.Contact`: rigid
+            obstacles of the mesh's dimension, or 2-D pairs of bodies).
         shape: name -> design velocity field V (n_nodes, dim). The reference
             coordinates are X(phi) = X0 + sum_k (phi_k - phi_k0) V_k, where
             phi_k0 is the value of ``k`` in ``params`` when the mesh was made
             (``shape_nominal``, defaulting to ``params``).
         shape_nominal: nominal values of the shape parameters.
-        kinematics: :class:`~signorini.fem.kinematics.PlaneStrain` (default) or
-            :class:`~signorini.fem.kinematics.Axisymmetric`.
-        formulation: :class:`~signorini.fem.element.Standard` (2x2 Gauss) or
-            :class:`~signorini.fem.element.FBar`; default (None): F-bar for
-            materials with history (plasticity), standard otherwise.
+        kinematics: of a 2-D mesh,
+            :class:`~signorini.fem.kinematics.PlaneStrain` (default) or
+            :class:`~signorini.fem.kinematics.Axisymmetric` (about the z axis;
+            loads, forces and areas over the whole circumference). A 3-D mesh
+            needs none: leave the default, and the kinematics of its cells are
+            taken (2-D kinematics given with a 3-D mesh are an error).
+        formulation: :class:`~signorini.fem.element.Standard` (full Gauss
+            quadrature: 2x2 on quadrilaterals, 2x2x2 on hexahedra, one point on
+            tetrahedra) or :class:`~signorini.fem.element.FBar` (quadrilaterals
+            and hexahedra); default (None): F-bar for materials with history
+            (plasticity; tetrahedra have no F-bar: give ``Standard()``), standard
+            otherwise.
     """
     mesh: Mesh
     material: object
