@@ -215,29 +215,17 @@ def invert_face(q, p, is_quad):
 # ------------------------------------------------------------------- quadrature
 class Quadrature(NamedTuple):
     """Quadrature of one slave face's overlap with one master face (NQ points,
-    weight zero where unused).
+    weight zero where unused)."""
 
-    Attributes:
-        plane: (NQ, 2) the points in the projection plane's (e1, e2) coordinates.
-        w: (NQ,) the weights (areas on the projection plane).
-        x_slave: (NQ, 3) the slave face's points above them (along the normal).
-        N_slave: (NQ, 4) the slave's shape functions there.
-        x_master: (NQ, 3) the master face's points on the same lines.
-        N_master: (NQ, 4) the master's shape functions there.
-        normal: (3,) the slave's projection normal n.
-        polygon: (MAXV, 2) the overlap polygon (plane coordinates).
-        polygon_mask: (MAXV,) its vertices.
-    """
-
-    plane: jnp.ndarray
-    w: jnp.ndarray
-    x_slave: jnp.ndarray
-    N_slave: jnp.ndarray
-    x_master: jnp.ndarray
-    N_master: jnp.ndarray
-    normal: jnp.ndarray
-    polygon: jnp.ndarray
-    polygon_mask: jnp.ndarray
+    plane: jnp.ndarray         #: (NQ, 2) the points in the projection plane's (e1, e2) coordinates
+    w: jnp.ndarray             #: (NQ,) the weights (areas on the projection plane)
+    x_slave: jnp.ndarray       #: (NQ, 3) the slave face's points above them (along the normal)
+    N_slave: jnp.ndarray       #: (NQ, 4) the slave's shape functions there
+    x_master: jnp.ndarray      #: (NQ, 3) the master face's points on the same lines
+    N_master: jnp.ndarray      #: (NQ, 4) the master's shape functions there
+    normal: jnp.ndarray        #: (3,) the slave's projection normal n
+    polygon: jnp.ndarray       #: (MAXV, 2) the overlap polygon (plane coordinates)
+    polygon_mask: jnp.ndarray  #: (MAXV,) its vertices
 
 
 def _area_centroid(P, k):
@@ -360,19 +348,13 @@ def dual_functions(N, w, mask=None):
 
 # ----------------------------------------------------------- weighted quantities
 class WeightedGaps(NamedTuple):
-    """One slave face's contributions to its vertices' weighted quantities.
+    """One slave face's contributions to its vertices' weighted quantities. ``slip``
+    is taken between the reference positions of the slave point and of the master
+    point opposite it; the assembly projects it on the slave node's tangent frame."""
 
-    Attributes:
-        gap: (4,) int Phi_j g dA (g the gap along the slave's normal).
-        slip: (4, 3) int Phi_j (X_s - X_m) dA (the reference positions of the
-            slave point and of the master point opposite it; the assembly
-            projects it on the slave node's tangent frame).
-        area: (4,) int N_j dA over the covered part.
-    """
-
-    gap: jnp.ndarray
-    slip: jnp.ndarray
-    area: jnp.ndarray
+    gap: jnp.ndarray   #: (4,) int Phi_j g dA (g the gap along the slave's normal)
+    slip: jnp.ndarray  #: (4, 3) int Phi_j (X_s - X_m) dA
+    area: jnp.ndarray  #: (4,) int N_j dA over the covered part
 
 
 def weighted_gaps(slave_face_xyz, n_slave_vertices, master_faces_xyz, n_master_vertices,
