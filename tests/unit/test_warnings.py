@@ -6,10 +6,15 @@ the warnings filtered prints nothing."""
 from __future__ import annotations
 
 import logging
+import re
 import warnings
 
+import numpy as np
+import pytest
+
 import signorini as sg
-from signorini.problems import hertz
+from signorini.model import checks
+from signorini.problems import hertz, hertz3d
 
 
 def _coarse_hertz():
@@ -39,3 +44,79 @@ def test_filtered_warnings_print_nothing_in_a_loop(caplog):
                 sol = sg.solve(pb.with_params(E=E))
                 assert sol.warnings
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+# --- the coarse-path warning of friction counts rings of nodes (issue 51, item 5) -----------
+
+
+def _coarse_path(sol):
+    return [w for w in sol.warnings if "grew by" in w]
+
+
+def _quarter_model():
+    # 3-D frictional Hertz on a small quarter model: its grid puts nodes (i, j) and
+    # (j, i) at equal distance from the contact centre, and they close together
+    return hertz3d.hertz3d_problem({"mu": 0.3}, n_fine=6, size=3.0)
+
+
+def _solve(pb, steps):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sg.SignoriniWarning)
+        return sg.solve(pb, steps=steps)
+
+
+def test_rings_count_nodes_at_equal_distance_once():
+    h = np.ones(6)
+    p = np.array([3.0, 2.0, 2.0, 0.0, 0.0, 0.0])
+    # a full 2-D model: a node and its mirror image are one ring
+    x = np.array([[0.0, 0], [-1, 0], [1, 0], [-2, 0], [2, 0], [3, 0]])
+    assert checks.closing_rings(x, np.array([0, 0, 0, 1, 1, 0], bool), p, h) == 1
+    assert checks.closing_rings(x, np.array([0, 0, 0, 1, 1, 1], bool), p, h) == 2
+    # a half model: one node is one ring, as the node count the threshold was calibrated on
+    xh = np.array([[0.0, 0], [1, 0], [2, 0], [3, 0], [4, 0], [5, 0]])
+    assert checks.closing_rings(xh, np.array([0, 0, 0, 1, 1, 0], bool), p, h) == 2
+    # no node at the centre: the two nodes of largest pressure share it
+    xe = np.array([[-0.5, 0], [0.5, 0], [-1.5, 0], [1.5, 0], [2.5, 0], [-2.5, 0]])
+    pe = np.array([3.0, 3.0, 2.0, 2.0, 0.0, 0.0])
+    assert checks.closing_rings(xe, np.array([0, 0, 0, 0, 1, 1], bool), pe, h) == 1
+    # a quarter grid in 3-D: (5, 0), (4, 3), (3, 4), (0, 5) are one ring, (5, 1) another
+    xq = np.array([[0.0, 0, 0], [5, 0, 0], [4, 3, 0], [3, 4, 0], [0, 5, 0], [5, 1, 0]])
+    pq = np.array([3.0, 0, 0, 0, 0, 0])
+    assert checks.closing_rings(xq, np.array([0, 1, 1, 1, 1, 0], bool), pq, h) == 1
+    assert checks.closing_rings(xq, np.array([0, 1, 1, 1, 1, 1], bool), pq, h) == 2
+
+
+@pytest.mark.timeout(300)
+def test_symmetric_quarter_model_clears_with_more_increments():
+    """The old node count warned on this mesh at 10, 20 and 40 increments (pairs of
+    nodes at equal radius, 'grew by 2 nodes', however small the step); rings of
+    nodes clear with 20."""
+    assert not _coarse_path(_solve(_quarter_model(), 20))
+
+
+@pytest.mark.timeout(300)
+def test_coarse_quarter_path_warns_and_its_advice_clears_it():
+    pb = _quarter_model()
+    with pytest.warns(sg.SignoriniWarning) as rec:
+        coarse = sg.solve(pb, steps=3)
+    (message,) = _coarse_path(coarse)
+    assert any(str(w.message) == message for w in rec)
+    assert "rings of nodes" in message and "use more load increments" in message
+    rings = int(re.search(r"grew by (\d+) rings", message).group(1))
+    assert rings > checks.MAX_NEW_CONTACT_RINGS
+    steps = int(re.search(r"--steps (\d+)\)", message).group(1))
+    assert steps > 3
+    assert not _coarse_path(_solve(pb, steps)), "following the advice must clear the warning"
+
+
+@pytest.mark.timeout(300)
+def test_half_model_in_2d_counts_nodes_and_its_advice_clears_it():
+    """hertz-friction is a half model: a ring is one node, so the warning fires where
+    the node count fired (3 increments, test_bad_inputs) and its advice clears it."""
+    from signorini.problems import hertz_friction as hf
+    pb = hf.hertz_friction_problem()
+    (message,) = _coarse_path(_solve(pb, 3))
+    rings, nodes = map(int, re.search(r"grew by (\d+) rings of nodes \((\d+) nodes\)", message).groups())
+    assert rings == nodes > 1
+    steps = int(re.search(r"--steps (\d+)\)", message).group(1))
+    assert not _coarse_path(_solve(pb, steps))

@@ -26,14 +26,19 @@ log = logging.getLogger("signorini")
 
 #: a contact zone with fewer closed nodes than this is poorly resolved
 MIN_CONTACT_NODES = 10
-#: a friction surface whose contact zone grows by more nodes than this in one
-#: increment in the last two thirds of the load path has a path too coarse for
-#: its history (benchmarks/study_friction_domain.py: this rule flags exactly the
-#: frictional Hertz paths whose stick zone is off by more than 2 %; the early
+#: a friction surface whose contact zone grows by more rings of nodes than this
+#: in one increment in the last two thirds of the load path has a path too coarse
+#: for its history (benchmarks/study_friction_domain.py: this rule flags exactly
+#: the frictional Hertz paths whose stick zone is off by more than 2 %; the early
 #: growth of a contact zone, 41 % of a in the 2nd increment, does not matter,
-#: because the final stick edge formed after about (c/a)^2 t = 0.47 t)
-MAX_NEW_CONTACT_NODES = 1
+#: because the final stick edge formed after about (c/a)^2 t = 0.47 t). On the
+#: half model of that study a ring is one node; see :func:`ring_distances`.
+MAX_NEW_CONTACT_RINGS = 1
+MAX_NEW_CONTACT_NODES = MAX_NEW_CONTACT_RINGS  # the name before rings were counted
 COARSE_PATH_FROM = 1.0 / 3.0
+#: newly closed nodes whose distances from the contact centre differ by less than
+#: this fraction of the cell size form one ring (see :func:`ring_distances`)
+RING_WIDTH = 0.02
 
 
 _SILENT = contextvars.ContextVar("signorini_checks_silent", default=False)
@@ -124,6 +129,107 @@ def before_solve(model, params, solution) -> None:
                            "what is meant: check the obstacle's position and the shape parameters")
 
 
+def side_lengths(X: np.ndarray, faces: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """(len(nodes),) the mean length of the surface's cell sides (edges in 2-D, the
+    sides of the faces in 3-D) that meet at each contact node: the local cell size."""
+    f = np.asarray(faces)
+    k = f.shape[1]
+    sides = f if k == 2 else np.concatenate([f[:, [j, (j + 1) % k]] for j in range(k)])
+    length = np.linalg.norm(X[sides[:, 1]] - X[sides[:, 0]], axis=1)
+    local = np.full(len(X), -1)
+    local[nodes] = np.arange(len(nodes))
+    ends = local[sides].ravel()
+    keep = ends >= 0
+    total = np.bincount(ends[keep], np.repeat(length, 2)[keep], minlength=len(nodes))
+    count = np.bincount(ends[keep], minlength=len(nodes))
+    h = np.divide(total, count, out=np.zeros(len(nodes)), where=count > 0)
+    return np.where(count > 0, h, length.mean() if len(length) else 1.0)
+
+
+def contact_centre(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The centre of a contact zone: the mean position of its nodes of largest
+    pressure (within 1e-6 of the largest). See :func:`ring_distances` for why."""
+    top = p >= (1.0 - 1e-6) * p.max()
+    return x[top].mean(axis=0)
+
+
+def ring_distances(x: np.ndarray, new: np.ndarray, p: np.ndarray, h: np.ndarray,
+                   width: float = RING_WIDTH) -> tuple[np.ndarray, np.ndarray]:
+    """The rings of nodes that the nodes ``new`` (closed in this increment) make:
+    the fewest bands ``width`` cell sizes ``h`` wide (``h`` of each band's nearest
+    node) that hold their distances from the contact centre (:func:`contact_centre`
+    of the current positions ``x`` and pressures ``p``). Returns the distance of
+    every node from the centre and the nearest distance of each ring.
+
+    What more increments can fix. A growing contact zone (Hertz-like: the
+    pressure falls from a centre outwards) closes its nodes in order of distance
+    from the centre. Nodes at the same distance close at the same load level
+    whatever the increment: on a symmetric mesh several of them (in 2-D a node
+    and its mirror image in a full model; in 3-D the nodes (i, j) and (j, i) of a
+    quarter model, or (5, 0) and (4, 3) of a regular grid) enter together however
+    small the steps, so counting nodes asks for what no load path can give. A
+    ring is such a set. Distinct distances are distinct rings, however close:
+    more increments separate them (a quarter model's distinct radii a few cells
+    from the centre differ by a tenth of a cell or more); ``width`` (2 % of a
+    cell) only absorbs round-off and the small departures of a discrete solution
+    from symmetry (about 4e-4 of a cell between (5, 0) and (4, 3) in ``hertz3d``).
+    On a half model in 2-D a ring is one node, and the count is the node count
+    the rule was calibrated on. Packing the distances greedily from the nearest
+    gives the fewest bands, and never more for a subset of the nodes: an
+    increment cut in two never closes more rings in either half.
+
+    The centre: the node of largest pressure, or the mean of several with equal
+    largest pressure (a full symmetric model whose centre falls between two
+    nodes). A pressure-weighted centroid would do on a full model but lies off the
+    centre on a half or quarter model, whose symmetry planes pass through the
+    centre while its nodes cover one side; the largest pressure of a Hertz-like
+    zone sits on those planes."""
+    closed = p > 0
+    c = contact_centre(x[closed], p[closed]) if closed.any() else x[new].mean(axis=0)
+    r = np.linalg.norm(x - c, axis=1)
+    idx = np.nonzero(new)[0]
+    starts, edge = [], -np.inf
+    for k in idx[np.argsort(r[idx], kind="stable")]:
+        if r[k] >= edge:
+            starts.append(r[k])
+            edge = r[k] + width * h[k]
+    return r, np.array(starts)
+
+
+def closing_rings(x, new, p, h, width: float = RING_WIDTH) -> int:
+    """How many rings of nodes the newly closed nodes ``new`` make (:func:`ring_distances`)."""
+    return len(ring_distances(x, new, p, h, width)[1]) if np.any(new) else 0
+
+
+def ring_spread(r: np.ndarray, starts: np.ndarray, closed0: np.ndarray,
+                closed1: np.ndarray) -> float:
+    """How far the contact front advanced in an increment, in closest spacings of
+    its rings ``starts`` (distances ``r`` from the centre; ``closed0``,
+    ``closed1``: the closed nodes before and after), plus one: the number of
+    increments that give each ring one of its own if the front moves evenly
+    (k rings evenly spaced: k + 1, the one for where the increments fall). At the
+    start the front lay between the last ring closed before, rho_0, and the first
+    new ring; at the end between the last new ring and the nearest node still
+    open, rho_n; its advance is taken between the midpoints, and the spacing
+    includes rho_0 and rho_n, which must close in increments of their own too."""
+    inside = r[closed0 & (r < starts[0])]
+    outside = r[~closed1 & (r > starts[-1])]
+    levels = np.concatenate([inside.max(keepdims=True) if inside.size else [],
+                             starts, outside.min(keepdims=True) if outside.size else []])
+    gap = float(np.diff(levels).min())
+    lo = 0.5 * (levels[0] + levels[1]) if inside.size else levels[0]
+    hi = 0.5 * (levels[-2] + levels[-1]) if outside.size else levels[-1]
+    return max((hi - lo) / gap + 1.0, len(starts) + 1.0)
+
+
+def advised_steps(offenders, threshold: int = MAX_NEW_CONTACT_RINGS) -> int:
+    """The number of equal load increments that brings each increment of
+    ``offenders`` ((spread, dt): :func:`ring_spread` of the rings that closed
+    over the load step dt) to at most ``threshold`` rings: increments of
+    ``threshold`` dt / spread."""
+    need = max(spread / (threshold * dt) for spread, dt in offenders)
+    return int(np.ceil(need - 1e-9))
+
 class IncrementChecks:
     """Checks between consecutive converged increments (tunnelling, coarse paths)."""
 
@@ -134,11 +240,17 @@ class IncrementChecks:
         self.prev = None  # (t, x of the contact nodes, closed masks) per surface
         self.pairs = {}  # surface -> (master edges, candidate matrix): pairs, finite kinematics
         self.memo = {}  # surface -> the partner distances of the last configuration (shared)
+        self.coarse = {}  # surface -> [(increment, t0, t, new nodes, rings)] over the threshold
+        self.sizes = {}  # surface -> the local cell size at each contact node (friction)
+        X = None
         for i, s in enumerate(model.surfaces):
             if s.patches is not None and not model.linear_contact[i]:
                 master = model.problem.mesh.edge_set(s.contact.obstacle.master)
                 self.pairs[i] = (master, mortar.candidates(s.patches, master))
                 self.memo[i] = model.cache.setdefault(("partner-distances", i), {})
+            if s.contact.method.has_history:
+                X = np.asarray(model.reference(params)) if X is None else X
+                self.sizes[i] = side_lengths(X, s.edges, s.nodes)
 
     def _snapshot(self, w, t):
         m = self.model
@@ -147,7 +259,8 @@ class IncrementChecks:
         snap = []
         for i, s in enumerate(m.surfaces):
             f = m.compiled.fields(to_device(w), self.params, t, i)
-            snap.append((X[s.nodes] + u[s.nodes], np.asarray(f["p_N"]) > 0))
+            p = np.asarray(f["p_N"])
+            snap.append((X[s.nodes] + u[s.nodes], p > 0, p))
         return t, snap
 
     def start(self, w) -> None:
@@ -161,8 +274,8 @@ class IncrementChecks:
         if self.prev is not None:
             t0, before = self.prev
             for i, s in enumerate(m.surfaces):
-                x0, closed0 = before[i]
-                x1, closed1 = now[1][i]
+                x0, closed0 = before[i][:2]
+                x1, closed1, p1 = now[1][i]
                 obst = s.contact.obstacle
                 if isinstance(obst, Circle) and not m.linear_contact[i]:
                     g0, g1 = obst.geometry(self.params, t0), obst.geometry(self.params, t)
@@ -175,15 +288,14 @@ class IncrementChecks:
                              f"{int(s.nodes[flip[0]])}) passed through the obstacle in increment "
                              f"{n_inc} (t = {t0:.4g} -> {t:.4g}); the result is not physical: use "
                              "more load increments")
-                if s.contact.method.has_history and t0 >= COARSE_PATH_FROM - 1e-12:
-                    new = int(np.sum(closed1 & ~closed0))
-                    if new > MAX_NEW_CONTACT_NODES and closed0.any():
-                        warn(self.solution,
-                             f"contact {s.contact.edges!r}: the contact zone grew by {new} nodes in "
-                             f"increment {n_inc} (t = {t0:.4g} -> {t:.4g}); with friction the "
-                             "history of the nodes that close within one increment is not resolved "
-                             f"(more than {MAX_NEW_CONTACT_NODES} per increment after t = 1/3), so "
-                             "stick and slip zones can be wrong: use more load increments")
+                if i in self.sizes and t0 >= COARSE_PATH_FROM - 1e-12 and closed0.any():
+                    new = closed1 & ~closed0
+                    if new.any():
+                        r, starts = ring_distances(x1, new, p1, self.sizes[i])
+                        if len(starts) > MAX_NEW_CONTACT_RINGS:
+                            spread = ring_spread(r, starts, closed0, closed1)
+                            self.coarse.setdefault(i, []).append(
+                                (n_inc, t0, t, int(new.sum()), len(starts), spread))
         self.prev = now
 
     def _lost_partners(self, w, now, n_inc) -> None:
@@ -217,6 +329,19 @@ class IncrementChecks:
     def final(self) -> None:
         if self.prev is None:
             return
+        for i, found in self.coarse.items():
+            n_inc, t0, t, new, rings, _ = max(found, key=lambda f: (f[5] / (f[2] - f[1]), -f[0]))
+            steps = advised_steps([(f[5], f[2] - f[1]) for f in found])
+            more = f" (and {len(found) - 1} more increment(s))" if len(found) > 1 else ""
+            warn(self.solution,
+                 f"contact {self.model.surfaces[i].contact.edges!r}: the contact zone grew by "
+                 f"{rings} rings of nodes ({new} nodes) in increment {n_inc} (t = {t0:.4g} -> "
+                 f"{t:.4g}){more}; with friction the history of the nodes that close within one "
+                 f"increment is not resolved (more than {MAX_NEW_CONTACT_RINGS} ring per increment "
+                 "after t = 1/3; nodes at equal distance from the contact centre are one ring: they "
+                 "close together however small the increment), so stick "
+                 f"and slip zones can be wrong: use more load increments, at least {steps} "
+                 f"(steps={steps}, --steps {steps})")
         for i, s in enumerate(self.model.surfaces):
             n = int(self.prev[1][i][1].sum())
             if 0 < n < MIN_CONTACT_NODES:
