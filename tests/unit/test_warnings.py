@@ -120,3 +120,28 @@ def test_half_model_in_2d_counts_nodes_and_its_advice_clears_it():
     assert rings == nodes > 1
     steps = int(re.search(r"--steps (\d+)\)", message).group(1))
     assert not _coarse_path(_solve(pb, steps))
+
+
+@pytest.mark.timeout(300)
+def test_a_failed_solve_keeps_the_warnings_of_its_converged_increments(monkeypatch):
+    """The coarse-path warning is given at the end of a solve; a solve that fails
+    in its last increment still carries it on the converged increments it keeps."""
+    from signorini.algorithms import newton as newton_module
+    from signorini.algorithms import stepping
+
+    pb = _quarter_model()
+    real = stepping.newton
+
+    def fails_at_the_end(model, pattern, lin, w, params, t, *args, **kw):
+        if t > 0.99:
+            raise newton_module.StepFailure("made to fail in this test", fatal=True)
+        return real(model, pattern, lin, w, params, t, *args, **kw)
+
+    monkeypatch.setattr(stepping, "newton", fails_at_the_end)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sg.SignoriniWarning)
+        with pytest.raises(sg.ConvergenceError) as e:
+            sg.solve(pb, steps=3)
+    partial = e.value.partial
+    assert len(partial.increments) == 2
+    assert len(_coarse_path(partial)) == 1

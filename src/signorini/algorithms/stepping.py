@@ -254,7 +254,9 @@ class _LoadPath:
         self.dt, self.cuts, self.total_cuts = self.dt_nominal, 0, 0
 
     def fail(self, message):
-        """The error that ends the solve, with the converged increments kept in it."""
+        """The error that ends the solve, with the converged increments kept in it and
+        what they warn of (a load path too coarse for friction among them)."""
+        self.inc_checks.final()
         self.sol.status = "failed"
         self.sol.reason = message
         self.progress.close("failed")
