@@ -24,7 +24,11 @@ def _point(spec, params):
 
 @dataclass(frozen=True)
 class Circle:
-    """Rigid cylinder of radius ``radius`` and centre ``centre``; the body lies outside.
+    """Rigid circle of radius ``radius`` and centre ``centre`` in the (x, y) plane;
+    the body lies outside. In plane strain it is a cylinder along z; with
+    :class:`~signorini.Axisymmetric` kinematics, the (r, z) half-plane, a
+    centre on the axis (r = 0) makes it a sphere, and one off the axis a torus. In
+    3-D use :class:`~signorini.Sphere` or :class:`~signorini.Cylinder`.
 
     The centre moves as ``centre + t * motion`` (t = load factor).
     The slip coordinate is s = radius * theta with theta measured from the
@@ -71,7 +75,11 @@ class Circle:
 @dataclass(frozen=True)
 class Line:
     """Rigid straight die through ``point`` (moving as ``point + t * motion``),
-    with unit normal ``normal`` pointing into the body (normalised on use).
+    with unit normal ``normal`` pointing into the body (normalised on use), in the
+    (x, y) plane. In plane strain it is a flat die along z; in axisymmetry, in the
+    (r, z) half-plane, a normal along z makes it a flat punch face and one along r
+    a cylindrical wall around the axis, and an oblique one a cone. In 3-D use
+    :class:`~signorini.Plane`.
     The slip coordinate is the distance along the tangent t' = (-n2, n1)."""
 
     point: tuple[Spec, Spec] = (0.0, 0.0)
