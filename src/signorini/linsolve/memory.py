@@ -147,9 +147,10 @@ def check_size(n_dof: int, *, force: bool = False, what: str = "this run", dim: 
                  n_dof, need / GB, name, "unknown" if have is None else f"{have / GB:.3g} GB")
     if have is not None and need > HEADROOM * have:
         most = largest_fitting(HEADROOM * have, name, dim, grow)
-        msg = (f"{what} has {'at least ' if lower_bound else ''}{n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of memory "
-               f"with the {name} solver, more than {100 * HEADROOM:.0f} % of the {have / GB:.3g} GB "
-               f"available (the largest that fits is about {most:,} unknowns)")
+        least = "at least " if lower_bound else ""
+        msg = (f"{what} has {least}{n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of "
+               f"memory with the {name} solver, more than {100 * HEADROOM:.0f} % of the "
+               f"{have / GB:.3g} GB available (the largest that fits is about {most:,} unknowns)")
         if not force:
             raise ResourceError(msg + f"; use {hint}, or insist with --force-size "
                                 "(API: force_size=True)")

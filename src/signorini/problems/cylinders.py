@@ -193,7 +193,6 @@ def cylinders_problem(params: dict | None = None, *, refine: int = 0, n_fine: in
         raise InputError(f"cylinders problem: Q = {values['Q']} must stay below mu P = "
                          f"{values['mu'] * values['P']} (Mindlin's partial slip; at Q >= mu P the "
                          "upper body slides away)")
-    check_mesh_options(refine, n_fine, 15.0, 1.5)
     what = "the two-cylinder mesh"
     hint = "a coarser mesh (smaller --refine or --n-fine)"
     # the lower body's fine zone on one side of the contact: a lower bound

@@ -67,24 +67,30 @@ def pressure_dR(x, P, R, E, nu):
 def check_mesh_options(refine, n_fine, size: float, zone: float) -> None:
     """The graded meshes' options: whole numbers refine >= 0 and n_fine >= 1, and a
     fine zone narrower than the block (both in units of a0)."""
-    for k, v in (("refine", refine), ("n_fine", n_fine)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (0 if k == "refine" else 1):
-            raise InputError(f"{k} must be an integer >= {0 if k == 'refine' else 1}, got {v!r}")
+    _check_counts(refine, n_fine)
     if not (np.isfinite(size) and np.isfinite(zone) and 0 < zone < size):
         raise InputError(f"the fine zone must be narrower than the block: need 0 < zone < block, "
                          f"got zone = {zone} a0, block = {size} a0")
 
 
-def check_fine_zone(refine: int, n_fine: int, *, dim: int = 2, bodies: int = 1,
-                    what: str = "the mesh", force: bool = False, solver="auto",
+def _check_counts(refine, n_fine) -> None:
+    """Whole numbers refine >= 0 and n_fine >= 1."""
+    for k, v in (("refine", refine), ("n_fine", n_fine)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (0 if k == "refine" else 1):
+            raise InputError(f"{k} must be an integer >= {0 if k == 'refine' else 1}, got {v!r}")
+
+
+def check_fine_zone(refine: int, n_fine: int, *, dim: int = 2, what: str = "the mesh",
+                    force: bool = False, solver="auto",
                     hint: str = "a coarser mesh (smaller --refine or --n-fine)") -> None:
     """The size guard before a graded mesh's grid lines are built: its fine zone
     alone (n_fine 2^refine cells across, 2/3 of that deep; in 3-D as wide in the
-    second direction; once per body) is a lower bound of the mesh, refused at once
-    if it cannot fit (:func:`signorini.linsolve.check_size`); building the grid
-    lines of a mesh that large would itself exhaust the time or the memory."""
+    second direction) is a lower bound of the mesh, refused at once if it cannot
+    fit (:func:`signorini.linsolve.check_size`); building the grid lines of a mesh
+    that large would itself exhaust the time or the memory."""
+    _check_counts(refine, n_fine)
     nf = int(n_fine) * 2 ** min(int(refine), 64)
-    nodes = bodies * (nf + 1) ** (dim - 1) * (max(round(nf * 2 / 3), 1) + 1)
+    nodes = (nf + 1) ** (dim - 1) * (max(round(nf * 2 / 3), 1) + 1)
     check_size(dim * nodes, dim=dim, force=force, what=what, solver=solver, hint=hint,
                lower_bound=True)
 
@@ -148,7 +154,6 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
         raise InputError(f"unknown contact method {method!r}; use 'al' or 'penalty'")
     nom = dict(DEFAULTS)
     nom.update(nominal or {})
-    check_mesh_options(refine, n_fine, size, zone)
     check_fine_zone(refine, n_fine, what="the Hertz mesh", force=force_size, solver=solver)
     xs, ys, a0 = mesh_coordinates(nom, refine=refine, n_fine=n_fine, size=size, zone=zone)
     m = multipliers_per_node if multipliers_per_node is not None else (1 if method == "al" else 0)

@@ -101,7 +101,6 @@ def hertz3d_problem(params: dict | None = None, *, refine: int = 0, n_fine: int 
     hint = "a coarser mesh (smaller --refine or --n-fine)" + (
         "" if axisymmetric or getattr(solver, "name", solver) == "amg" else
         ", the iterative solver (--solver amg), which needs less memory in 3-D")
-    check_mesh_options(refine, n_fine, size, zone)
     check_fine_zone(refine, n_fine, dim=dim, what=what, force=force_size, solver=solver, hint=hint)
     xs, zs, _ = grid(refine=refine, n_fine=n_fine, size=size, zone=zone)
     friction = values["mu"] > 0
