@@ -5,6 +5,7 @@ exactness, the dual functions' biorthogonality, the weighted gap of flat faces
 under a rigid motion, jit and vmap."""
 
 import itertools
+import os
 
 import jax
 import jax.numpy as jnp
@@ -14,6 +15,14 @@ import pytest
 from signorini.contact import clip3d
 
 D = 0.1  # the distance between the flat faces
+
+
+@pytest.fixture(autouse=True)
+def exact_clip(request, monkeypatch):
+    """The clip without its tolerance band (CLIP_TOL = 0): the exact overlap, which
+    these tests compare with closed forms; the tests of the band set it back."""
+    if "clip_tol" not in request.keywords or os.environ.get("NOBAND"):
+        monkeypatch.setattr(clip3d, "CLIP_TOL", 0.0)
 
 
 def square(x0, y0, h, z=0.0, facing_down=False):
@@ -355,3 +364,45 @@ def test_jit_and_vmap_over_face_pairs():
         assert np.asarray(one.area).sum() > 0.1
     q = jax.jit(jax.vmap(clip3d.overlap_quadrature))(slaves, masters[:, 1], ns, nms[:, 1])
     assert q.w.shape == (len(slaves), clip3d.NQ)
+
+
+@pytest.mark.clip_tol
+def test_the_clip_keeps_a_band_of_clip_tol_outside_the_slave_face():
+    """With its tolerance the clip is the exact clip by the slave polygon moved
+    outward by CLIP_TOL x each edge's length: the shifted square's overlap is
+    (0.7 + tol) x (0.8 + tol)."""
+    tol = clip3d.CLIP_TOL
+    assert tol > 0
+    slave, ns, master, nm, _ = CASES["shifted"]
+    q = clip3d.overlap_quadrature(slave, master, ns, nm)
+    assert abs(float(jnp.sum(q.w)) - (0.7 + tol) * (0.8 + tol)) <= 1e-15
+
+
+@pytest.mark.clip_tol
+@pytest.mark.parametrize("noise", [(0.0, 0.0), (2.3e-16, -1.2e-16), (-1.2e-16, 2.3e-16), (1e-15, -1e-15)])
+def test_master_faces_along_the_slave_edges_have_bounded_derivatives(noise):
+    """Two master faces A (over the slave) and B (its neighbour) share the edge
+    x = 1 that lies, to round-off, along the slave's edge (matching meshes,
+    coincident boundaries: its two ends on either side of the slave's edge by
+    ``noise``). The covered area summed over A and B does not change
+    when the shared edge moves (its derivative is 0: what A loses, B gains), and
+    the second derivatives of the weighted gap stay of the order of the geometry
+    (without the band, round-off placed a crossing point anywhere along the edge
+    and they reached 1e13)."""
+    slave = SLAVE_QUAD
+
+    def total(e):
+        A = square(0.0, 0.0, 1.0, D, True)
+        B = square(1.0, 0.0, 1.0, D, True)
+        A = A.copy()
+        B = B.copy()
+        A[[1, 2], 0] = 1.0 + np.array(noise)  # facing down: A's rows 1, 2 and B's 0, 3 at x = 1
+        B[[0, 3], 0] = 1.0 + np.array(noise)
+        A = jnp.asarray(A).at[jnp.array([1, 2]), 0].add(e)
+        B = jnp.asarray(B).at[jnp.array([0, 3]), 0].add(e)
+        wg = clip3d.weighted_gaps(slave, 4, jnp.stack([A, B]), jnp.array([4, 4]))
+        return jnp.sum(wg.area), wg.gap
+
+    assert abs(float(jax.grad(lambda e: total(e)[0])(0.0))) <= 1e-9
+    H = jax.jacfwd(jax.jacfwd(lambda e: total(e)[1]))(0.0)
+    assert np.all(np.isfinite(H)) and np.abs(H).max() <= 10.0

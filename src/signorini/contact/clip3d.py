@@ -51,6 +51,11 @@ _BARY = np.array([[1 / 3, 1 / 3, 1 / 3],
                   [_A1, _A1, 1 - 2 * _A1], [_A1, 1 - 2 * _A1, _A1], [1 - 2 * _A1, _A1, _A1],
                   [_A2, _A2, 1 - 2 * _A2], [_A2, 1 - 2 * _A2, _A2], [1 - 2 * _A2, _A2, _A2]])
 _WEIGHTS = np.array([9 / 40] + [(155 - _S15) / 1200] * 3 + [(155 + _S15) / 1200] * 3)
+#: the clip keeps what lies within CLIP_TOL x an edge's length outside the clip
+#: polygon's edge: an edge of the subject along an edge of the clip (coincident
+#: surface boundaries, matching meshes) then stays inside, instead of crossing
+#: it at a point that round-off places anywhere along it (docs/theory.md §13.9)
+CLIP_TOL = 1e-12
 #: quadrature points per face pair
 NQ = MAXV * len(_WEIGHTS)
 #: an overlap whose mass matrix has det M <= TAU[n] (tr M)^n (n shape functions)
@@ -86,7 +91,8 @@ def _signed_area2(P, k):
 def _clip_halfplane(P, k, a, b, s):
     """One Sutherland–Hodgman step: the polygon of the first ``k`` vertices of
     ``P`` (MAXV, 2) clipped to the side of the line a -> b where s * cross(b - a,
-    p - a) >= 0 (s = +1: the left). Each edge (p, q) of the polygon emits the
+    p - a) >= -CLIP_TOL |b - a|^2 (s = +1: the left; the line moved outward by
+    CLIP_TOL x |b - a|). Each edge (p, q) of the polygon emits the
     crossing point when p and q lie on different sides, then q when q is inside;
     the emitted points are compacted by a 0/1 matrix product (differentiable,
     fixed shapes)."""
@@ -94,7 +100,7 @@ def _clip_halfplane(P, k, a, b, s):
     valid = idx < k
     nxt = jnp.where(idx + 1 < k, idx + 1, 0)
     Q = P[nxt]
-    d = s * _cross2(b - a, P - a)
+    d = s * _cross2(b - a, P - a) + CLIP_TOL * ((b - a) @ (b - a))
     dq = d[nxt]
     p_in, q_in = d >= 0.0, dq >= 0.0
     # crossing parameter: its denominator is non-zero wherever the point is emitted;
@@ -274,7 +280,10 @@ def overlap_quadrature(slave_face_xyz, master_face_xyz, n_slave_vertices, n_mast
     four = jnp.arange(4)
     poly, pmask = clip_polygon(qm, qs, four < n_master_vertices, four < n_slave_vertices)
     k = jnp.sum(pmask)
-    g = _area_centroid(poly, k)
+    # the fan's origin: the integrals do not depend on it (exactly so for polynomial
+    # integrands), so it is held fixed under differentiation; its derivatives would
+    # grow like 1 / area on a sliver of an overlap (docs/theory.md §13.9)
+    g = jax.lax.stop_gradient(_area_centroid(poly, k))
     nxt = jnp.where(jnp.arange(MAXV) + 1 < k, jnp.arange(MAXV) + 1, 0)
     # the slave polygon is counter-clockwise about n; the overlap has the master's
     # orientation, opposite when the faces face each other

@@ -134,6 +134,23 @@ class Patches:
     slave_mask: np.ndarray
     master_mask: np.ndarray
 
+    def arrays(self) -> tuple:
+        """What a node's kernel takes besides the patch positions (per node)."""
+        return jnp.asarray(self.slave_mask), jnp.asarray(self.master_mask)
+
+    @staticmethod
+    def node(X, slave_mask, master_mask, linear: bool, axisymmetric: bool = False):
+        """The pair as seen by one slave node (:class:`MortarNode`)."""
+        return MortarNode(X, slave_mask, master_mask, linear=linear, axisymmetric=axisymmetric)
+
+    def master_nodes(self) -> np.ndarray:
+        """The mesh nodes of every candidate master segment."""
+        nc, M = self.master_mask.shape
+        return np.unique(self.nodes[:, 3:].reshape(nc, M, 2)[self.master_mask > 0])
+
+    def has_candidates(self) -> bool:
+        return bool(self.master_mask.any())
+
 
 def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarray,
                   master_edges: np.ndarray, search: float | None, name: str,

@@ -209,28 +209,40 @@ def rectangle(xs, ys) -> Mesh:
 def merge(bodies: Mapping[str, Mesh]) -> Mesh:
     """One mesh of several bodies (disconnected: no node is shared).
 
-    ``bodies``: name -> mesh. Each body's node and edge sets keep their names
-    prefixed by the body's, ``"<body>.<set>"``; the node set ``"<body>"`` holds
-    all its nodes. Node and cell numbers follow the order of ``bodies``.
+    ``bodies``: name -> mesh, all 2-D (:class:`Mesh`) or all 3-D
+    (:class:`~signorini.fem.mesh3d.Mesh3D`, of one kind of cell). Each body's node
+    and edge (2-D) or face (3-D) sets keep their names prefixed by the body's,
+    ``"<body>.<set>"``; the node set ``"<body>"`` holds all its nodes. Node and
+    cell numbers follow the order of ``bodies``.
     """
     if not bodies:
         raise InputError("merge needs at least one body")
-    nodes, cells, node_sets, edge_sets = [], [], {}, {}
+    dims = {int(m.nodes.shape[1]) for m in bodies.values()}
+    if len(dims) > 1:
+        raise InputError("merge takes meshes of one dimension: all 2-D or all 3-D; got "
+                         + ", ".join(f"{k!r} {m.nodes.shape[1]}-D" for k, m in bodies.items()))
+    dim = dims.pop()
+    kinds = {m.cells.shape[1] for m in bodies.values()}
+    if dim == 3 and len(kinds) > 1:
+        raise InputError("merge: the 3-D bodies must have one kind of cell (all hexahedra or all "
+                         "tetrahedra); got " + ", ".join(f"{k!r} {m.cell.name}" for k, m in bodies.items()))
+    nodes, cells, node_sets, boundary_sets = [], [], {}, {}
     off = 0
     for name, m in bodies.items():
         if "." in name:
             raise InputError(f"body name {name!r}: a body name may not contain '.'")
-        if m.nodes.shape[1] != 2:
-            raise InputError(f"body {name!r}: merge takes 2-D meshes")
         nodes.append(m.nodes)
         cells.append(m.cells + off)
         node_sets[name] = off + np.arange(m.n_nodes)
         for k, v in m.node_sets.items():
             node_sets[f"{name}.{k}"] = v + off
-        for k, v in m.edge_sets.items():
-            edge_sets[f"{name}.{k}"] = v + off
+        for k, v in (m.face_sets if dim == 3 else m.edge_sets).items():
+            boundary_sets[f"{name}.{k}"] = v + off
         off += m.n_nodes
-    return Mesh(np.concatenate(nodes), np.concatenate(cells), node_sets, edge_sets)
+    if dim == 3:
+        from .mesh3d import Mesh3D
+        return Mesh3D(np.concatenate(nodes), np.concatenate(cells), node_sets, boundary_sets)
+    return Mesh(np.concatenate(nodes), np.concatenate(cells), node_sets, boundary_sets)
 
 
 def _components(cells: np.ndarray, n: int) -> np.ndarray:

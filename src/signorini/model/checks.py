@@ -18,7 +18,7 @@ import numpy as np
 
 from .._jax import jax, jnp, to_device
 from ..errors import InputError, SignoriniWarning
-from ..contact import mortar
+from ..contact import mortar, mortar3d
 from ..contact.obstacles import Circle
 from ..params import resolve
 
@@ -245,8 +245,12 @@ class IncrementChecks:
         X = None
         for i, s in enumerate(model.surfaces):
             if s.patches is not None and not model.linear_contact[i]:
-                master = model.problem.mesh.edge_set(s.contact.obstacle.master)
-                self.pairs[i] = (master, mortar.candidates(s.patches, master))
+                if model.dim == 3:
+                    master = model.problem.mesh.face_set(s.contact.obstacle.master)
+                    self.pairs[i] = (master, mortar3d.candidates(s.patches, len(master)))
+                else:
+                    master = model.problem.mesh.edge_set(s.contact.obstacle.master)
+                    self.pairs[i] = (master, mortar.candidates(s.patches, master))
                 self.memo[i] = model.cache.setdefault(("partner-distances", i), {})
             if s.contact.method.has_history:
                 X = np.asarray(model.reference(params)) if X is None else X
@@ -311,17 +315,25 @@ class IncrementChecks:
         for i, (master, cand) in self.pairs.items():
             s = m.surfaces[i]
             closed = now[1][i][1]
-            dist = np.where(cand, np.inf, mortar.partner_distances(x, s.patches, master, self.memo[i]))
-            lost = (np.any(dist <= 1.0, axis=1) & closed) | np.any(dist <= 0.5, axis=1)
+            if m.dim == 3:
+                lost = ((mortar3d.outside(mortar3d.partners(x, s.patches, s.edges, s.nodes, master), cand)
+                         & closed)
+                        | mortar3d.outside(mortar3d.partners(x, s.patches, s.edges, s.nodes, master, 0.5),
+                                           cand))
+            else:
+                dist = np.where(cand, np.inf, mortar.partner_distances(x, s.patches, master, self.memo[i]))
+                lost = (np.any(dist <= 1.0, axis=1) & closed) | np.any(dist <= 0.5, axis=1)
             if lost.any():
                 first = int(s.nodes[np.argmax(lost)])
                 slide = s.contact.obstacle.slide
-                window = "half a segment" + (f" plus slide = {slide:g}" if slide else "")
+                window = ("a quarter of a face" if m.dim == 3 else "half a segment") + (
+                    f" plus slide = {slide:g}" if slide else "")
+                what = "faces" if m.dim == 3 else "segments"
                 warn(self.solution,
                      f"contact pair {s.contact.edges!r}/{s.contact.obstacle.master!r}: in increment "
                      f"{n_inc} (t = {now[0]:.4g}) {int(lost.sum())} slave node(s) (first: node "
-                     f"{first}) overlap master segments, in contact or within half a segment of "
-                     "them, that are not among their candidate partners (found once on the nominal "
+                     f"{first}) overlap master {what}, in contact or close to them, "
+                     "that are not among their candidate partners (found once on the nominal "
                      f"mesh, within {window} of their own); contact with those segments is missed "
                      "and the result is not physical: give the pair the sliding distance, "
                      "pair(..., slide=...)")

@@ -16,6 +16,7 @@ import numpy as np
 from .._jax import jax, jnp
 from ..contact.area import check_edges, contact_nodes, nodal_normals
 from ..contact.friction3d import disc, reference_axis
+from ..contact import mortar3d
 from ..contact.mortar import build_patches, is_mortar
 from ..errors import InputError
 from ..fem.mesh import parts
@@ -158,9 +159,8 @@ class DofLayout:
         held[self.prescribed // self.dim] = True
         for s in self.surfaces:
             held[s.nodes] = True
-            if s.patches is not None:  # the master segments that face a slave node
-                nc, M = s.patches.master_mask.shape
-                held[s.patches.nodes[:, 3:].reshape(nc, M, 2)[s.patches.master_mask > 0]] = True
+            if s.patches is not None:  # the master segments or faces that face a slave node
+                held[s.patches.master_nodes()] = True
         for name, nodes, _ in bodies:
             if not held[nodes].any():
                 node = int(nodes[0])
@@ -172,18 +172,23 @@ class DofLayout:
 
     def _pair_patches(self, mesh, c, edges, nodes):
         """The patches of a contact pair's slave nodes (:func:`signorini.contact.mortar.build_patches`)."""
-        if self.dim != 2:
-            raise InputError(f"contact pair {c.edges!r}/{c.obstacle.master!r}: two-body contact is "
-                             "implemented for plane strain and axisymmetry (2-D meshes); this mesh is 3-D")
-        master = mesh.edge_set(c.obstacle.master)
-        check_edges(master, c.obstacle.master)
-        patches = build_patches(np.asarray(mesh.nodes, dtype=float), edges, nodes, master,
-                                c.obstacle.search, f"{c.edges}/{c.obstacle.master}",
-                                c.obstacle.slide)
-        if not patches.master_mask.any():
+        name = f"{c.edges}/{c.obstacle.master}"
+        if self.dim == 3:
+            master = mesh.face_set(c.obstacle.master)
+            if not len(master):
+                raise InputError(f"contact pair {name}: the master face set {c.obstacle.master!r} is empty")
+            patches = mortar3d.build_patches(np.asarray(mesh.nodes, dtype=float), edges, nodes, master,
+                                             c.obstacle.search, name, c.obstacle.slide)
+        else:
+            master = mesh.edge_set(c.obstacle.master)
+            check_edges(master, c.obstacle.master)
+            patches = build_patches(np.asarray(mesh.nodes, dtype=float), edges, nodes, master,
+                                    c.obstacle.search, name, c.obstacle.slide)
+        if not patches.has_candidates():
+            what = ("face", "face", "face sets") if self.dim == 3 else ("segment", "segment", "edge sets")
             raise InputError(
-                f"contact pair {c.edges!r}/{c.obstacle.master!r}: no master segment faces any slave "
-                "segment within the search distance; check that the two edge sets face each other "
+                f"contact pair {c.edges!r}/{c.obstacle.master!r}: no master {what[0]} faces any slave "
+                f"{what[1]} within the search distance; check that the two {what[2]} face each other "
                 "(outward normals opposite) and that search (the normal distance of candidates) is "
                 "large enough")
         return patches

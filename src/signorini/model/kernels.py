@@ -43,7 +43,6 @@ from ..contact.area import nodal_normals
 from .dofs import DofLayout
 from ..errors import InputError
 from ..contact.obstacles import Linearized
-from ..contact.mortar import MortarNode
 from .fields import ModelFields
 from .geometry import NODES, ModelGeometry  # noqa: F401  (NODES: re-exported)
 from .cells import CellKernels, element_family
@@ -271,8 +270,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         cp = c.method.values(params)
         if s.patches is not None:  # a contact pair: each slave node's patch of nodes
             pn = s.patches.nodes
-            return (X[pn] + u[pn], lam, A, geo, cp,
-                    (X[pn], jnp.asarray(s.patches.slave_mask), jnp.asarray(s.patches.master_mask)))
+            return (X[pn] + u[pn], lam, A, geo, cp, (X[pn],) + s.patches.arrays())
         x = X[s.nodes] + u[s.nodes]
         return x, lam, A, geo, cp, (X[s.nodes], nodal_normals(X, s.edges, s.nodes))
 
@@ -287,7 +285,7 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         """The obstacle as seen by one contact node (linearised kinematics if asked)."""
         linear = self.linear_contact[self.surfaces.index(s)]
         if s.patches is not None:
-            return MortarNode(*Xs, linear=linear, axisymmetric=self.kinematics.name == "axisymmetric")
+            return s.patches.node(*Xs, linear=linear, axisymmetric=self.kinematics.name == "axisymmetric")
         if linear:
             return Linearized(s.contact.obstacle, *Xs)
         return s.contact.obstacle

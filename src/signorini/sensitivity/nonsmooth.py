@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contact import mortar
+from ..contact import mortar, mortar3d
 
 #: relative distance from a switch below which a point is reported as on it
 SWITCH_TOL = 1e-6
@@ -57,7 +57,9 @@ class SwitchDetector:
             vals = s.contact.method.values(params)
             self._eps.append(float(vals.get("eps_n", vals.get("eps", 0.0))))
             if s.patches is not None and not model.linear_contact[i]:
-                self._pairs[i] = model.problem.mesh.edge_set(s.contact.obstacle.master)
+                mesh = model.problem.mesh
+                self._pairs[i] = (mesh.face_set if model.dim == 3 else mesh.edge_set)(
+                    s.contact.obstacle.master)
 
     def __call__(self, w, params, t, state_n) -> dict:
         """{"weakly_active": [[node, ...] per surface], "stick_slip": [[node, ...] per
@@ -95,6 +97,13 @@ class SwitchDetector:
         for i, master in self._pairs.items():
             s = m.surfaces[i]
             closed = surf[i]["p_N"] > 0
+            if m.dim == 3:
+                now = mortar3d.partners(x, s.patches, s.edges, s.nodes, master)
+                before = self._partners.get(i)
+                if before is not None:
+                    changes[i] = [int(n) for n in s.nodes[mortar3d.changed(now, before) & closed]]
+                self._partners[i] = now
+                continue
             on = mortar.end_switches(x, s.patches, master, self.tol) & closed
             ends[i] = [int(n) for n in s.nodes[on]]
             now = mortar.partners(x, s.patches, master, memo=m.cache.setdefault(("partner-distances", i), {}))

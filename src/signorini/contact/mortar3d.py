@@ -1,0 +1,394 @@
+"""Two deformable 3-D bodies in contact: the face patches of a mortar pair and
+the pair as seen by one slave node (docs/theory.md §13.9–§13.10).
+
+What is the same as in 2-D is not repeated here: :func:`signorini.contact.pair`
+makes the pair, the law (:class:`~signorini.contact.AugmentedLagrangian`, the
+Coulomb disc of :mod:`signorini.contact.friction3d`) acts on the weighted gap
+and slip of a slave node exactly as on a rigid obstacle's gap and closest
+point, and the patch of a node is found once on the nominal reference mesh.
+What differs is the geometry: a slave node's patch is the slave faces around
+it and, per face, the master faces that may cover it; the face-pair clip and
+its quadrature are :mod:`signorini.contact.clip3d`.
+
+Per slave node j (faces e around it, Γ_e the part of e covered by its
+candidates, Φ_j its dual function on that part)::
+
+    G_j = Σ_e ∫_Γe Φ_j g dA,  S_j = Σ_e ∫_Γe Φ_j r dA,  Ā_j = Σ_e ∫_Γe N_j dA,
+
+gap g_j = G_j / Ā_j and the slip point y_j = S_j / Ā_j (3,), whose increments,
+projected on the node's tangent basis, are the slip. r is the slip of the slave
+relative to the master: with linearised kinematics the relative displacement
+x_s − x_m at the reference points opposite each other, with finite kinematics
+X_m − X_s, the reference position of the master material point now opposite
+the slave point less the slave point's (both move by +d when the slave slides
+by d over a fixed master, as a rigid obstacle's closest point does).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._jax import jax, jnp
+from ..errors import InputError
+from . import clip3d
+
+#: the gap given to a slave node that no master face covers (open), relative to
+#: the patch size (as in 2-D)
+FAR = 1e6
+#: a master face is a candidate of a slave face when its projection on the slave
+#: face's plane comes within this fraction of the slave face's diameter of the
+#: slave face's own projection (plus the pair's ``slide``): small sliding
+MARGIN = 0.25
+#: a placeholder face for the padding (masked: it adds nothing; well posed, so
+#: its discarded values and derivatives stay finite)
+_DUMMY = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def _pad4(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 4) vertices (a triangle's fourth = its first) and (n,) vertex counts."""
+    faces = np.asarray(faces, dtype=np.int64)
+    k = faces.shape[1]
+    if k == 4:
+        return faces, np.full(len(faces), 4)
+    return np.concatenate([faces, faces[:, :1]], axis=1), np.full(len(faces), 3)
+
+
+def face_frames(X: np.ndarray, faces: np.ndarray, nv: np.ndarray):
+    """(centre (n, 3), unit normal (n, 3), e1 (n, 3), e2 (n, 3), radius (n,)) of
+    faces (n, 4) (NumPy; the frame of :func:`clip3d.face_frame`)."""
+    V = X[faces]
+    quad = (nv == 4)[:, None]
+    c = np.where(quad, V.mean(axis=1), V[:, :3].mean(axis=1))
+    nq = np.cross(V[:, 2] - V[:, 0], V[:, 3] - V[:, 1])
+    nt = np.cross(V[:, 1] - V[:, 0], V[:, 2] - V[:, 0])
+    n = np.where(quad, nq, nt)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    t = (V[:, 1] - V[:, 0]) - np.einsum("ni,ni->n", V[:, 1] - V[:, 0], n)[:, None] * n
+    e1 = t / np.linalg.norm(t, axis=1, keepdims=True)
+    radius = np.linalg.norm(V - c[:, None], axis=2).max(axis=1)
+    return c, n, e1, np.cross(n, e1), radius
+
+
+@dataclass(frozen=True)
+class Patches3D:
+    """The static pairing of a 3-D slave surface (docs/theory.md §13.10). Per
+    slave node (nc of them), with P patch nodes, F faces around the node and M
+    candidates per face (each padded to the surface's largest):
+
+    Attributes:
+        nodes: (nc, P) the patch's mesh nodes, the slave node first (padding:
+            the slave node again).
+        slave_faces: (nc, F, 4) the node's slave faces, as positions in ``nodes``.
+        slave_nv: (nc, F) their vertex counts (3 or 4).
+        slave_mask: (nc, F) which faces exist.
+        own: (nc, F) the position of the slave node among each face's vertices.
+        master_faces: (nc, F, M, 4) each face's candidate master faces, as
+            positions in ``nodes``.
+        master_nv: (nc, F, M) their vertex counts.
+        master_mask: (nc, F, M) which candidates exist.
+        master_index: (nc, F, M) the candidates' rows in the master face set (-1: none).
+    """
+
+    nodes: np.ndarray
+    slave_faces: np.ndarray
+    slave_nv: np.ndarray
+    slave_mask: np.ndarray
+    own: np.ndarray
+    master_faces: np.ndarray
+    master_nv: np.ndarray
+    master_mask: np.ndarray
+    master_index: np.ndarray
+
+    def arrays(self) -> tuple:
+        """What a node's kernel takes besides the patch positions (per node)."""
+        return (jnp.asarray(self.slave_faces), jnp.asarray(self.slave_nv),
+                jnp.asarray(self.slave_mask), jnp.asarray(self.own),
+                jnp.asarray(self.master_faces), jnp.asarray(self.master_nv),
+                jnp.asarray(self.master_mask))
+
+    @staticmethod
+    def node(X, *arrays, linear: bool, axisymmetric: bool = False):
+        """The pair as seen by one slave node (:class:`MortarNode3D`)."""
+        return MortarNode3D(X, *arrays, linear=linear)
+
+    def master_nodes(self) -> np.ndarray:
+        """The mesh nodes of every candidate master face."""
+        nc = self.nodes.shape[0]
+        pos = self.master_faces.reshape(nc, -1, 4)
+        mask = self.master_mask.reshape(nc, -1) > 0
+        rows = np.nonzero(mask)[0]
+        return np.unique(self.nodes[rows[:, None], pos[mask]])
+
+    def has_candidates(self) -> bool:
+        return bool(self.master_mask.any())
+
+
+def candidate_faces(X: np.ndarray, slave: np.ndarray, snv: np.ndarray, master: np.ndarray,
+                    mnv: np.ndarray, search, slide: float, margin: float = MARGIN) -> list[np.ndarray]:
+    """Per slave face, the master faces that may cover it (NumPy, on the
+    positions ``X``): they face it (n_e . n_m < 0), their centre lies within
+    ``search`` of its plane along its normal (a number, or None: one diameter
+    of each slave face), and their projection on its plane comes within
+    ``margin`` x its diameter + ``slide`` of its own projection (bounding boxes
+    in the plane's (e1, e2) coordinates)."""
+    cs, ns, e1, e2, rs = face_frames(X, slave, snv)
+    search = 2.0 * rs if search is None else np.full(len(slave), float(search))
+    cm, nm, _, _, rm = face_frames(X, master, mnv)
+    Vm = X[master]  # (nm, 4, 3)
+    Vs = X[slave]
+    out = []
+    chunk = max(1, int(2e6) // max(len(master), 1))
+    for lo in range(0, len(slave), chunk):
+        sl = slice(lo, min(lo + chunk, len(slave)))
+        d = cm[None, :, :] - cs[sl, None, :]  # (c, nm, 3)
+        dn = np.einsum("cmi,ci->cm", d, ns[sl])
+        reach = 2.0 * margin * rs[sl, None] + slide
+        tang = np.linalg.norm(d - dn[..., None] * ns[sl, None, :], axis=2)
+        near = ((np.einsum("ci,mi->cm", ns[sl], nm) < 0.0) & (np.abs(dn) <= search[sl, None])
+                & (tang <= rs[sl, None] + rm[None, :] + reach))
+        for i in range(sl.stop - sl.start):
+            e = lo + i
+            m = np.nonzero(near[i])[0]
+            if not m.size:
+                out.append(m)
+                continue
+            E = np.stack([e1[e], e2[e]], axis=1)  # (3, 2)
+            ps = (Vs[e, :snv[e]] - cs[e]) @ E
+            pm = (Vm[m] - cs[e]) @ E  # (k, 4, 2); a triangle's fourth is its first
+            r = 2.0 * margin * rs[e] + slide
+            lo_s, hi_s = ps.min(axis=0) - r, ps.max(axis=0) + r
+            over = np.all((pm.max(axis=1) > lo_s) & (pm.min(axis=1) < hi_s), axis=1)
+            if margin == 0.0:  # partners: the projected polygons themselves overlap
+                over &= np.array([_overlaps(ps, q[:mnv[k]]) for q, k in zip(pm, m)], bool)
+            out.append(m[over])
+    return out
+
+
+def _overlaps(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two convex polygons (k, 2) overlap with a positive area (no
+    separating axis among their edges' normals)."""
+    for P in (a, b):
+        d = np.roll(P, -1, axis=0) - P
+        for nrm in np.stack([d[:, 1], -d[:, 0]], axis=1):
+            pa, pb = a @ nrm, b @ nrm
+            tol = 1e-12 * np.abs(nrm).max() * (np.ptp(a) + np.ptp(b))
+            if pa.max() <= pb.min() + tol or pb.max() <= pa.min() + tol:
+                return False
+    return True
+
+
+def build_patches(X: np.ndarray, slave_faces: np.ndarray, slave_nodes: np.ndarray,
+                  master_faces: np.ndarray, search: float | None, name: str,
+                  slide: float | None = None) -> Patches3D:
+    """The patches of every slave node of a 3-D pair (NumPy, on the nominal
+    reference mesh ``X``; docs/theory.md §13.10)."""
+    common = np.intersect1d(np.unique(slave_faces), np.unique(master_faces))
+    if common.size:
+        raise InputError(f"contact pair {name!r}: the slave and master surfaces share "
+                         f"{common.size} node(s) (first: node {int(common[0])}); a pair needs two "
+                         "surfaces that can separate")
+    sf, snv = _pad4(slave_faces)
+    mf, mnv = _pad4(master_faces)
+    if search is None:
+        box = X[slave_nodes].max(axis=0) - X[slave_nodes].min(axis=0)
+        search = float(max(box.max(), 1e-300))
+    cand = candidate_faces(X, sf, snv, mf, mnv, search, float(slide or 0.0))
+    nc = len(slave_nodes)
+    pos = {int(n): k for k, n in enumerate(slave_nodes)}
+    around: list[list[int]] = [[] for _ in range(nc)]
+    for e, f in enumerate(sf):
+        for a in range(snv[e]):
+            around[pos[int(f[a])]].append(e)
+    F = max(len(a) for a in around)
+    M = max(1, max((len(c) for c in cand), default=1))
+    patch_nodes = []
+    s_faces = np.zeros((nc, F, 4), np.int64)
+    s_nv = np.full((nc, F), 4, np.int64)
+    s_mask = np.zeros((nc, F))
+    own = np.zeros((nc, F), np.int64)
+    m_faces = np.zeros((nc, F, M, 4), np.int64)
+    m_nv = np.full((nc, F, M), 4, np.int64)
+    m_mask = np.zeros((nc, F, M))
+    m_index = np.full((nc, F, M), -1, np.int64)
+    for j in range(nc):
+        sj = int(slave_nodes[j])
+        local = {sj: 0}
+        order = [sj]
+
+        def at(n):
+            n = int(n)
+            if n not in local:
+                local[n] = len(order)
+                order.append(n)
+            return local[n]
+
+        for k, e in enumerate(around[j]):
+            s_faces[j, k] = [at(v) for v in sf[e]]
+            s_nv[j, k] = snv[e]
+            s_mask[j, k] = 1.0
+            own[j, k] = int(np.nonzero(sf[e][:snv[e]] == sj)[0][0])
+        for k, e in enumerate(around[j]):
+            for i, m in enumerate(cand[e]):
+                m_faces[j, k, i] = [at(v) for v in mf[m]]
+                m_nv[j, k, i] = mnv[m]
+                m_mask[j, k, i] = 1.0
+                m_index[j, k, i] = m
+        patch_nodes.append(order)
+    P = max(len(o) for o in patch_nodes)
+    nodes = np.array([o + [o[0]] * (P - len(o)) for o in patch_nodes], dtype=np.int64)
+    return Patches3D(nodes, s_faces, s_nv, s_mask, own, m_faces, m_nv, m_mask, m_index)
+
+
+# ------------------------------------------------------------- the per-node pair
+class MortarNode3D:
+    """The master surface as seen by one slave node of a 3-D pair: ``gap``,
+    ``closest`` (the weighted slip point y_j) and ``normal`` of the node's patch
+    positions ``x`` (P, 3), the methods the laws call on a rigid obstacle.
+
+    Args:
+        X: reference positions of the patch (P, 3) (at the current parameters).
+        slave_faces, slave_nv, slave_mask, own, master_faces, master_nv,
+            master_mask: one node's rows of :class:`Patches3D`.
+        linear: linearised kinematics (reference normals, projections and
+            overlaps: G_j and S_j affine in x).
+    """
+
+    def __init__(self, X, slave_faces, slave_nv, slave_mask, own, master_faces, master_nv,
+                 master_mask, linear: bool):
+        self.X = X
+        self.sf, self.snv, self.smask, self.own = slave_faces, slave_nv, slave_mask, own
+        self.mf, self.mnv, self.mmask = master_faces, master_nv, master_mask
+        self.linear = linear
+        self._affine = None
+        if linear:
+            # G_j, S_j are affine in x (docs/theory.md §13.2): their values at X and
+            # their gradients there, once per evaluation, instead of differentiating
+            # the clip once per patch coordinate
+            (G0, S0, A0), vjp = jax.vjp(self._overlap_integrals, X)
+            zero3 = jnp.zeros(3)
+            Ga, = vjp((jnp.ones(()), zero3, jnp.zeros(())))
+            Sa = jnp.stack([vjp((jnp.zeros(()), jnp.eye(3)[k], jnp.zeros(())))[0] for k in range(3)])
+            self._affine = (G0, S0, A0, Ga, Sa)
+
+    def _integrals(self, x):
+        if self._affine is None:
+            return self._overlap_integrals(x)
+        G0, S0, A0, Ga, Sa = self._affine
+        d = x - self.X
+        return G0 + jnp.sum(Ga * d), S0 + jnp.einsum("kpi,pi->k", Sa, d), A0
+
+    def _face(self, x, f):
+        """(∫ Φ_j g, ∫ Φ_j r (3,), ∫ N_j) over slave face f's covered part."""
+        X = self.X
+        geo = X if self.linear else x
+        on = self.smask[f] > 0
+        dummy = jnp.asarray(_DUMMY, X.dtype)
+        sidx, midx = self.sf[f], self.mf[f]
+        nvs = jnp.where(on, self.snv[f], 4)
+        xs = jnp.where(on, geo[sidx], dummy)
+        mm = self.mmask[f] * self.smask[f]
+        xm = jnp.where((mm > 0)[:, None, None], geo[midx], xs[None])
+        nvm = jnp.where(mm > 0, self.mnv[f], nvs)
+        q = jax.vmap(clip3d.overlap_quadrature, (None, 0, None, 0))(xs, xm, nvs, nvm)
+        w = (q.w * mm[:, None]).reshape(-1)
+        Ns = q.N_slave.reshape(-1, 4)
+        Nm = q.N_master  # (M, NQ, 4)
+        phi = clip3d.dual_functions(Ns, w, (jnp.arange(4) < nvs).astype(X.dtype))
+        pick = (jnp.arange(4) == self.own[f]).astype(X.dtype)
+        wphi = w * (phi @ pick)
+        n = q.normal[0]
+        if self.linear:
+            vs = Ns @ x[sidx]
+            vm = jnp.einsum("mqa,mak->mqk", Nm, x[midx]).reshape(-1, 3)
+            g = (vm - vs) @ n
+            r = vs - vm
+        else:
+            g = ((q.x_master - q.x_slave) @ n).reshape(-1)
+            r = jnp.einsum("mqa,mak->mqk", Nm, X[midx]).reshape(-1, 3) - Ns @ X[sidx]
+        return jnp.sum(wphi * g), wphi @ r, w @ (Ns @ pick)
+
+    def _overlap_integrals(self, x):
+        """(G_j, S_j (3,), Ā_j) summed over the node's slave faces."""
+        G, S, A = jax.vmap(lambda f: self._face(x, f))(jnp.arange(self.sf.shape[0]))
+        return jnp.sum(G), jnp.sum(S, axis=0), jnp.sum(A)
+
+    def gap(self, x, geo=None):
+        """g_j = G_j / Ā_j; FAR x the patch size where nothing covers the node's faces."""
+        G, _, A = self._integrals(x)
+        far = FAR * jnp.max(jnp.abs(self.X - self.X[0]))
+        return jnp.where(A > 0.0, clip3d._safe_div(G, A), far)
+
+    def closest(self, x, geo=None):
+        """The weighted slip point y_j = S_j / Ā_j (3,)."""
+        _, S, A = self._integrals(x)
+        return clip3d._safe_div(S, A)
+
+    def normal(self, x, geo=None):
+        """Minus the mean outward normal of the node's slave faces (reference ones
+        for linearised kinematics): the direction of a rigid obstacle's normal."""
+        geo_ = self.X if self.linear else x
+        dummy = jnp.asarray(_DUMMY, self.X.dtype)
+
+        def one(f):
+            on = self.smask[f] > 0
+            xs = jnp.where(on, geo_[self.sf[f]], dummy)
+            return clip3d.face_frame(xs, jnp.where(on, self.snv[f], 4))[1] * self.smask[f]
+
+        n = jnp.sum(jax.vmap(one)(jnp.arange(self.sf.shape[0])), axis=0)
+        return -n / jnp.sqrt(n @ n)
+
+
+# ------------------------------------------------- partners in the current state
+def partners(x: np.ndarray, patches: Patches3D, slave_faces: np.ndarray, slave_nodes: np.ndarray,
+             master_faces: np.ndarray, reach: float = 1.0):
+    """(nc, n_master_faces) sparse boolean matrix: in the configuration ``x`` (all
+    nodes' positions), the master faces that face one of a slave node's faces,
+    overlap its projection on the face's plane, and lie within ``reach`` face
+    diameters of it along its normal (the 3-D version of
+    :func:`signorini.contact.mortar.partners`)."""
+    import scipy.sparse as sp
+    sf, snv = _pad4(slave_faces)
+    mf, mnv = _pad4(master_faces)
+    cs, ns, _, _, rs = face_frames(np.asarray(x, float), sf, snv)
+    cand = candidate_faces(np.asarray(x, float), sf, snv, mf, mnv, None, 0.0, margin=0.0)
+    if reach != 1.0:
+        cm = face_frames(np.asarray(x, float), mf, mnv)[0]
+        cand = [c[np.abs((cm[c] - cs[e]) @ ns[e]) <= reach * 2.0 * rs[e]] for e, c in enumerate(cand)]
+    pos = np.searchsorted(slave_nodes, sf)
+    rows, cols = [], []
+    for e, c in enumerate(cand):
+        for a in range(snv[e]):
+            rows.append(np.full(len(c), pos[e, a]))
+            cols.append(c)
+    data = np.ones(sum(len(r) for r in rows), bool)
+    out = sp.csr_matrix((data, (np.concatenate(rows), np.concatenate(cols))),
+                        shape=(len(slave_nodes), len(mf)))
+    out.sum_duplicates()
+    out.data[:] = True
+    return out
+
+
+def candidates(patches: Patches3D, n_master: int):
+    """(nc, n_master_faces) sparse boolean matrix of every slave node's candidates."""
+    import scipy.sparse as sp
+    nc = patches.nodes.shape[0]
+    idx = patches.master_index.reshape(nc, -1)
+    rows, cols = np.nonzero(idx >= 0)
+    out = sp.csr_matrix((np.ones(rows.size, bool), (rows, idx[rows, cols])), shape=(nc, n_master))
+    out.sum_duplicates()
+    out.data[:] = True
+    return out
+
+
+def outside(now, cand) -> np.ndarray:
+    """(nc,) True where a node has a partner (``now``) that is not a candidate."""
+    extra = now.astype(np.int8) - now.multiply(cand).astype(np.int8)
+    return np.asarray(extra.sum(axis=1)).ravel() > 0
+
+
+def changed(now, before) -> np.ndarray:
+    """(nc,) True where a node's partners differ between two configurations."""
+    diff = (now.astype(np.int8) - before.astype(np.int8))
+    return np.asarray(abs(diff).sum(axis=1)).ravel() > 0
