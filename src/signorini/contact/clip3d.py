@@ -11,15 +11,14 @@ area centroid and integrated with a degree-5 rule on each
 (:func:`overlap_quadrature`). The dual (biorthogonal) functions on the covered
 part of the face (:func:`dual_functions`) and the weighted gap and slip
 (:func:`weighted_gaps`) are the 3-D versions of ``mortar._dual`` and of
-``MortarNode._overlap_integrals``.
+``MortarNode._overlap_integrals``; the pair built on them is
+:mod:`signorini.contact.mortar3d`.
 
 Every function is pure JAX with fixed array shapes (a polygon is padded to
 :data:`MAXV` vertices with a validity mask, a face to 4 vertices with its
 vertex count; no Python branch on a value), so that it can be ``jit``-ed,
 ``vmap``-ed over face pairs and differentiated by ``jvp``/``grad`` to any
-order needed by the residual, the tangent, the DDM and the adjoint. It is used
-by nothing else yet: the 3-D pair (patches, the law, the solver) is to be built
-on it.
+order needed by the residual, the tangent, the DDM and the adjoint.
 
 Conventions: a face is ``(4, 3)`` vertex coordinates ordered counter-clockwise
 seen from outside its body (a triangle's fourth row is ignored); the slave's

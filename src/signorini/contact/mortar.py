@@ -93,16 +93,21 @@ def pair(slave: str, master: str, method=None, kinematics: str = "auto",
          search: float | None = None, slide: float | None = None):
     """A contact pair between two deformable surfaces (docs/theory.md §13).
 
+    In 2-D (plane strain, axisymmetry) the surfaces are edge sets, in 3-D face
+    sets (quadrilaterals of hexahedra or triangles of tetrahedra; the 3-D pair:
+    :mod:`signorini.contact.mortar3d`, docs/theory.md §13.10).
+
     Args:
-        slave: edge set whose nodes carry the contact multipliers (in a pair of
-            different mesh densities, take the finer surface).
-        master: edge set of the other surface (same or another body).
+        slave: edge or face set whose nodes carry the contact multipliers (in a
+            pair of different mesh densities, take the finer surface).
+        master: edge or face set of the other surface (same or another body).
         method: :class:`~signorini.contact.AugmentedLagrangian` (default),
             :class:`~signorini.contact.Coulomb` or :class:`~signorini.contact.Penalty`.
         kinematics: ``"linear"``, ``"finite"`` or ``"auto"`` as for a rigid obstacle.
         search, slide: see :class:`Mortar` (``slide``: how far the surfaces may
             slide along each other, e.g. the stroke of an ironing die; it sizes
-            the candidate partners, found once on the nominal mesh).
+            the candidate partners, found once on the nominal mesh; without it
+            sliding is small: half a segment in 2-D, a quarter of a face in 3-D).
 
     Returns a :class:`~signorini.contact.Contact` to put in ``Problem.contact``.
     """

@@ -249,8 +249,8 @@ class MortarNode3D:
 
     Args:
         X: reference positions of the patch (P, 3) (at the current parameters).
-        slave_faces, slave_nv, slave_mask, own, master_faces, master_nv,
-            master_mask: one node's rows of :class:`Patches3D`.
+        slave_faces, slave_nv, slave_mask, own, master_faces, master_nv, master_mask:
+            one node's rows of :class:`Patches3D`.
         linear: linearised kinematics (reference normals, projections and
             overlaps: G_j and S_j affine in x).
     """
@@ -348,7 +348,7 @@ def partners(x: np.ndarray, patches: Patches3D, slave_faces: np.ndarray, slave_n
     overlap its projection on the face's plane, and lie within ``reach`` face
     diameters of it along its normal (the 3-D version of
     :func:`signorini.contact.mortar.partners`)."""
-    import scipy.sparse as sp
+    import scipy.sparse as sp  # lazy: only the partner reports of finite sliding need it
     sf, snv = _pad4(slave_faces)
     mf, mnv = _pad4(master_faces)
     cs, ns, _, _, rs = face_frames(np.asarray(x, float), sf, snv)
@@ -372,7 +372,7 @@ def partners(x: np.ndarray, patches: Patches3D, slave_faces: np.ndarray, slave_n
 
 def candidates(patches: Patches3D, n_master: int):
     """(nc, n_master_faces) sparse boolean matrix of every slave node's candidates."""
-    import scipy.sparse as sp
+    import scipy.sparse as sp  # lazy: only the partner reports of finite sliding need it
     nc = patches.nodes.shape[0]
     idx = patches.master_index.reshape(nc, -1)
     rows, cols = np.nonzero(idx >= 0)

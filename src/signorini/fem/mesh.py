@@ -239,10 +239,8 @@ def merge(bodies: Mapping[str, Mesh]) -> Mesh:
         for k, v in (m.face_sets if dim == 3 else m.edge_sets).items():
             boundary_sets[f"{name}.{k}"] = v + off
         off += m.n_nodes
-    if dim == 3:
-        from .mesh3d import Mesh3D
-        return Mesh3D(np.concatenate(nodes), np.concatenate(cells), node_sets, boundary_sets)
-    return Mesh(np.concatenate(nodes), np.concatenate(cells), node_sets, boundary_sets)
+    kind = type(next(iter(bodies.values())))  # Mesh, or Mesh3D (its boundary sets: faces)
+    return kind(np.concatenate(nodes), np.concatenate(cells), node_sets, boundary_sets)
 
 
 def _components(cells: np.ndarray, n: int) -> np.ndarray:

@@ -38,7 +38,8 @@ class Problem:
         loads: boundary loads (:class:`~signorini.fem.loads.Pressure`, ``Traction``)
             on edge sets in 2-D, face sets in 3-D.
         contact: contact surfaces (:class:`~signorini.contact.Contact`: rigid
-            obstacles of the mesh's dimension, or 2-D pairs of bodies).
+            obstacles of the mesh's dimension, or pairs of bodies,
+            :func:`~signorini.contact.pair`, in 2-D and 3-D).
         shape: name -> design velocity field V (n_nodes, dim). The reference
             coordinates are X(phi) = X0 + sum_k (phi_k - phi_k0) V_k, where
             phi_k0 is the value of ``k`` in ``params`` when the mesh was made

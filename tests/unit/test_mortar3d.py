@@ -1,0 +1,245 @@
+"""Two deformable 3-D bodies in contact: the mortar pair on faces (docs/theory.md §13.10).
+
+The 3-D contact patch test (hexahedra on hexahedra at cell ratios 1:1, 2:3, 1:3,
+tetrahedra on tetrahedra; frictionless, with friction under a uniform shear,
+and with finite kinematics), exchanging slave and master, DDM = FD and adjoint
+= DDM through a frictional path with a curved body, invariance under a rigid
+motion of the whole problem, and bad input."""
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import signorini as sg
+from signorini.contact.mortar import pair
+from signorini.errors import InputError
+from signorini.fem.loads import Fixed, Pressure, Traction
+from signorini.fem.mesh import merge
+from signorini.fem.mesh3d import Mesh3D, box, tetrahedra
+from signorini.materials import Bodies, LinearElastic, NeoHooke
+
+P, Q = 1.0, 0.2
+
+
+def blocks(n_low, n_up, tets=False):
+    """Two unit-square blocks meeting on z = 0.5, n_low and n_up cells across."""
+    low = box(np.linspace(0, 1, n_low + 1), np.linspace(0, 1, n_low + 1), np.linspace(0, 0.5, 3))
+    up = box(np.linspace(0, 1, n_up + 1), np.linspace(0, 1, n_up + 1), np.linspace(0.5, 1.0, 3))
+    if tets:
+        low, up = tetrahedra(low), tetrahedra(up)
+    return merge({"low": low, "up": up})
+
+
+def patch_problem(n_low, n_up, friction=False, tets=False, swap=False, kinematics="auto",
+                  material=None):
+    """The blocks under a uniform pressure P on top; with friction also a uniform
+    shear Q < mu P (sigma_xz = Q), the tractions of that uniform state applied on
+    the bottom and on the x faces."""
+    mesh = blocks(n_low, n_up, tets)
+    params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "p": P, "mu": 0.5, "eps_t": 100.0, "q": Q, "mq": -Q}
+    slave, master = ("low.z1", "up.z0") if swap else ("up.z0", "low.z1")
+    if friction:
+        mesh = dataclasses.replace(mesh, node_sets={**mesh.node_sets, "corner": [0]})
+        fixed = [Fixed("low.z0", 2), Fixed("corner", 0), Fixed("low.y0", 1), Fixed("up.y0", 1)]
+        loads = [Pressure("up.z1", "p"), Traction("up.z1", ("q", 0.0, 0.0)),
+                 Traction("low.z0", ("mq", 0.0, 0.0))]
+        loads += [Traction(f"{b}.x1", (0.0, 0.0, "q")) for b in ("low", "up")]
+        loads += [Traction(f"{b}.x0", (0.0, 0.0, "mq")) for b in ("low", "up")]
+        method = sg.Coulomb()
+    else:
+        fixed = [Fixed("low.z0", 2)] + [Fixed(f"{b}.{s}0", k) for b in ("low", "up") for k, s in ((0, "x"), (1, "y"))]
+        loads = [Pressure("up.z1", "p")]
+        method = sg.AugmentedLagrangian()
+    return sg.Problem(mesh, material or LinearElastic(), params, fixed=fixed, loads=loads,
+                      contact=[pair(slave, master, method, kinematics)])
+
+
+def check_uniform(sol, friction):
+    S = np.asarray(sol.stress()[0]).reshape(-1, 3, 3)
+    expect = np.zeros((3, 3))
+    expect[2, 2] = -P
+    if friction:
+        expect[0, 2] = expect[2, 0] = Q
+    assert np.abs(S - expect).max() <= 1e-10 * P
+    c = sol.contact()
+    assert np.abs(c["p_N"] - P).max() <= 1e-10 * P
+    if friction:
+        assert np.abs(np.linalg.norm(c["p_T"], axis=1) - Q).max() <= 1e-10 * P
+        assert set(c["status"]) == {"stick"}
+
+
+@pytest.mark.parametrize("ratio", [pytest.param((1, 1), marks=pytest.mark.slow),
+                                   pytest.param((2, 3), marks=pytest.mark.slow), (1, 3)],
+                         ids=["1:1", "2:3", "1:3"])
+def test_patch_test_hexahedra(ratio):
+    """Non-matching hexahedral meshes on a flat interface transmit a uniform
+    pressure exactly: every Gauss point's stress is the uniform one to round-off,
+    every multiplier the pressure."""
+    check_uniform(sg.solve(patch_problem(2 * ratio[0], 2 * ratio[1])), False)
+
+
+@pytest.mark.parametrize("ratio", [pytest.param((1, 1), marks=pytest.mark.slow),
+                                   pytest.param((2, 3), marks=pytest.mark.slow), (1, 3)],
+                         ids=["1:1", "2:3", "1:3"])
+def test_patch_test_hexahedra_with_friction(ratio):
+    """With friction and a uniform shear below mu P: the uniform stress, every node
+    sticking, every tangential multiplier of size Q."""
+    check_uniform(sg.solve(patch_problem(2 * ratio[0], 2 * ratio[1], friction=True), steps=2), True)
+
+
+@pytest.mark.parametrize("friction", [False, pytest.param(True, marks=pytest.mark.slow)],
+                         ids=["frictionless", "friction"])
+def test_patch_test_tetrahedra(friction):
+    """Triangles on triangles (tetrahedral meshes, 2:3): the same uniform state."""
+    check_uniform(sg.solve(patch_problem(2, 3, friction=friction, tets=True), steps=2 if friction else 1),
+                  friction)
+
+
+def test_patch_test_finite_kinematics():
+    """Finite kinematics (neo-Hooke blocks, current normals and overlaps): a uniform
+    Cauchy stress."""
+    sol = sg.solve(patch_problem(2, 3, kinematics="finite", material=NeoHooke()), steps=2)
+    S = np.asarray(sol.stress()[0]).reshape(-1, 3, 3)
+    assert np.ptp(S, axis=0).max() <= 1e-10 * P
+    assert abs(S[0, 2, 2] + P) < 2e-2  # the nominal pressure P, Cauchy within the strain
+
+
+@pytest.mark.slow
+def test_swapping_the_surfaces():
+    """Slave and master exchanged: the same (exact) patch-test solution."""
+    u = [sg.solve(patch_problem(2, 3, friction=True, swap=s), steps=2).displacement() for s in (False, True)]
+    assert np.abs(u[0] - u[1]).max() <= 1e-10 * np.abs(u[0]).max()
+
+
+def _ci():
+    import os
+    return os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+
+# ------------------------------------------------------------ a curved contact
+NAMES = ["E1", "E2", "p", "d", "mu", "c"]
+
+
+def crown_problem():
+    """A block whose bottom face is lifted by c (x^2 + y^2) (c a shape parameter,
+    the design velocity fading to 0 at its top) pressed by p on a wider block
+    with friction (its first touch at one node), then its top moved by d along x
+    (partial slip); each block its own modulus. Non-matching meshes (cells 0.45
+    and 0.5 across)."""
+    low = box(np.linspace(-1, 1, 5), np.linspace(-1, 1, 5), np.linspace(0, 0.5, 3))
+    up = box(np.linspace(-0.9, 0.9, 5), np.linspace(-0.9, 0.9, 5), np.linspace(0.5, 0.9, 3))
+    mesh = merge({"low": low, "up": up})
+    X = mesh.nodes
+    V = np.zeros_like(X)
+    in_up = mesh.node_sets["up"]
+    lift = (0.9 - X[in_up, 2]) / 0.4
+    V[in_up, 2] = lift * (X[in_up, 0] ** 2 + X[in_up, 1] ** 2)
+    params = {"E1": 100.0, "E2": 150.0, "nu": 0.3, "eps": 100.0, "eps_t": 100.0, "mu": 0.4,
+              "p": 2.0, "d": 0.004, "c": 0.1}
+    mesh = Mesh3D(X + 0.1 * V, mesh.cells, mesh.node_sets, mesh.face_sets)
+    fixed = ([Fixed("low.z0", k) for k in range(3)] + [Fixed("up.z1", 1)]
+             + [Fixed("up.z1", 0, "d", ramp=sg.Ramp(0.5, 1.0))])
+    loads = [Pressure("up.z1", "p", ramp=sg.Ramp(0.0, 0.5))]
+    return sg.Problem(mesh, Bodies({"low": LinearElastic(E="E1"), "up": LinearElastic(E="E2")}), params,
+                      fixed=fixed, loads=loads, shape={"c": V}, shape_nominal={"c": 0.1},
+                      contact=[pair("up.z0", "low.z1", sg.Coulomb())])
+
+
+STEPS = 4
+
+
+@pytest.fixture(scope="module")
+def crown():
+    pb = crown_problem()
+    return pb, sg.solve(pb, steps=STEPS, wrt=NAMES)
+
+
+def test_crown_ddm_equals_fd(crown):
+    """DDM = central FD of the pressures and tangential tractions for the moduli
+    of both bodies, the load, the slide, mu and the shape of the upper body,
+    through a frictional path with stick and slip nodes."""
+    pb, sol = crown
+    c = sol.contact()
+    closed = c["p_N"] > 0
+    assert {"stick", "slip"} <= set(c["status"][closed])
+    tight = sg.NewtonOptions(rtol=1e-13, step_tol=1e-11)
+    for n in NAMES if not _ci() else ["E2", "mu", "c"]:  # in CI: one of each kind
+        h = 1e-5 * abs(pb.params[n])
+        f = [sg.solve(pb.with_params(**{n: pb.params[n] + s * h}), steps=STEPS, options=tight).contact()
+             for s in (1, -1)]
+        scale = np.abs(c["dp_N_d" + n]).max()
+        for k in ("p_N", "p_T"):
+            fd = (f[0][k] - f[1][k]) / (2 * h)
+            assert np.abs(c[f"d{k}_d{n}"] - fd).max() <= 1e-6 * scale, (n, k)
+
+
+@pytest.mark.slow  # the adjoint's machinery is the 2-D pairs' (test_mortar.py); the kernel is the DDM test's
+def test_crown_adjoint_equals_ddm(crown):
+    """The adjoint gradient of a response of the tractions = the DDM's for every
+    parameter, and (projected on the design velocity) with respect to every nodal
+    coordinate of both bodies."""
+    pb, _ = crown
+
+    def response(model):
+        def f(w, p, t):
+            c = model.contact_fields(w, p, t, 0)
+            return jnp.sum(c["area"] * (c["p_N"] ** 2 + c["p_T"][:, 0] * c["p_N"]))
+        return f
+    ga = sg.gradient(pb, response, wrt=NAMES + ["nodes"], steps=STEPS, method=sg.Adjoint())
+    gd = sg.gradient(pb, response, wrt=NAMES, steps=STEPS, method=sg.DDM())
+    for n in NAMES:
+        assert ga[n] == pytest.approx(gd[n], rel=1e-10, abs=1e-12 * abs(gd["p"])), n
+    assert np.sum(np.asarray(ga["nodes"]) * pb.shape["c"]) == pytest.approx(gd["c"], rel=1e-10)
+
+
+def test_a_rigid_motion_of_a_patch_changes_nothing():
+    """Every slave node of the crown, its patch turned by an arbitrary rotation and
+    moved: the weighted gap is the same, the slip point and the normal turn with
+    it (finite kinematics, displaced positions), to 1e-12."""
+    from signorini.model import Model
+    pb = crown_problem()
+    m = Model(dataclasses.replace(pb, contact=[pair("up.z0", "low.z1", sg.Coulomb(), "finite")]))
+    s = m.surfaces[0]
+    X = np.asarray(pb.mesh.nodes)
+    rng = np.random.default_rng(1)
+    x = X + 0.01 * rng.standard_normal(X.shape) * np.isin(np.arange(len(X)), s.patches.nodes)[:, None]
+    A = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    A *= np.sign(np.linalg.det(A))
+    b = np.array([3.0, -2.0, 5.0])
+    arrays = s.patches.arrays()
+
+    @jax.jit
+    def seen(Y, y, *arr):
+        node = s.patches.node(Y, *arr, linear=False)
+        return node.gap(y), node.closest(y), node.normal(y)
+
+    for j in range(0, len(s.nodes), 3):
+        pn = s.patches.nodes[j]
+        row = [a[j] for a in arrays]
+        (g0, y0, n0), (g1, y1, n1) = (
+            [np.asarray(v) for v in seen(jnp.asarray(Y), jnp.asarray(y), *row)]
+            for Y, y in ((X[pn], x[pn]), (X[pn] @ A.T + b, x[pn] @ A.T + b)))
+        assert abs(float(g1) - float(g0)) <= 1e-12
+        assert np.abs(y1 - y0 @ A.T).max() <= 1e-12
+        assert np.abs(n1 - n0 @ A.T).max() <= 1e-12
+
+
+def test_bad_pairs():
+    mesh = blocks(2, 3)
+    params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "p": 1.0}
+    fixed = [Fixed("low.z0", 2)] + [Fixed(f"{b}.{s}0", k) for b in ("low", "up") for k, s in ((0, "x"), (1, "y"))]
+    with pytest.raises(InputError, match="both 'low.z1'"):
+        pair("low.z1", "low.z1")
+    with pytest.raises(InputError, match="no master face faces any slave face"):  # two tops
+        sg.solve(sg.Problem(mesh, LinearElastic(), params, fixed=fixed, contact=[pair("up.z1", "low.z1")]))
+    with pytest.raises(InputError, match="body 'up'.*no support and no contact"):
+        sg.solve(sg.Problem(mesh, LinearElastic(), params, fixed=fixed[:3], loads=[Pressure("up.z1", "p")]))
+    with pytest.raises(InputError, match="one dimension"):
+        from signorini.fem.mesh import rectangle
+        merge({"a": blocks(1, 1), "b": rectangle(np.linspace(0, 1, 2), np.linspace(0, 1, 2))})
+    with pytest.raises(InputError, match="one kind of cell"):
+        low = box(np.linspace(0, 1, 2), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
+        merge({"a": low, "b": tetrahedra(low)})
