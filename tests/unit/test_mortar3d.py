@@ -114,6 +114,18 @@ def test_swapping_the_surfaces():
     assert np.abs(u[0] - u[1]).max() <= 1e-10 * np.abs(u[0]).max()
 
 
+@pytest.mark.parametrize("size", [(2, 3), pytest.param((8, 12), marks=pytest.mark.slow)],
+                         ids=["one coarse level", "multigrid"])
+def test_the_iterative_solver_handles_pair_rows(size):
+    """solver="amg" (GMRES, the pair's multiplier rows through the block
+    preconditioner's Schur complement): the patch test's uniform state, on a
+    problem smaller than one coarse level (its exact solve is the preconditioner)
+    and, with friction, on 2,757 unknowns (the multigrid hierarchy)."""
+    friction = size == (8, 12)
+    sol = sg.solve(patch_problem(*size, friction=friction), solver="amg", steps=2 if friction else 1)
+    check_uniform(sol, friction)
+
+
 def _ci():
     import os
     return os.environ.get("CI", "").lower() in ("1", "true", "yes")

@@ -339,6 +339,16 @@ class AMGKrylov(LinearSolver):
         if modes is not None:
             B[st.u_global] = modes(B[st.u_global])
         aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
+        u_full = np.zeros(N)
+        if not aggregates:  # no larger than a coarse level: its exact solve is the preconditioner
+            import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
+            lu = spla.splu(full.tocsc())
+
+            def exact(r_u):
+                u_full[:] = 0.0
+                u_full[st.u_global] = r_u
+                return lu.solve(u_full)[st.u_global]
+            return exact
         with _fixed_random_start():
             ml = pyamg.smoothed_aggregation_solver(
                 full, B=B, max_coarse=self.MAX_COARSE, coarse_solver="splu",
@@ -350,7 +360,6 @@ class AMGKrylov(LinearSolver):
                 smooth=("jacobi", {"omega": 4.0 / 3.0, "filter_entries": True}))
         cycle = ChebyshevCycle(ml)
         del ml
-        u_full = np.zeros(N)
 
         def v_cycle(r_u):
             u_full[:] = 0.0
