@@ -124,6 +124,7 @@ ABSURD = {
     "forging": ["--mesh", "3000x6000"],
     "forging3d": ["--mesh", "300x600"],
     "cylinders": ["--refine", "6"],
+    "spheres": ["--n-fine", "200"],
     "ironing": ["--refine", "3"],
     "optimize-forging": ["--mesh", "3000x6000"],
     "run": ["{toml}"],
@@ -132,7 +133,8 @@ ABSURD = {
 #: machine is said to have almost no memory)
 SMALL = {
     "hertz": [], "hertz-friction": [], "hertz3d": ["--n-fine", "4"], "forging": ["--mesh", "4x8"],
-    "forging3d": ["--mesh", "2x2"], "cylinders": ["--n-fine", "6"], "ironing": ["--cells", "24"],
+    "forging3d": ["--mesh", "2x2"], "cylinders": ["--n-fine", "6"], "spheres": ["--n-fine", "4"],
+    "ironing": ["--cells", "24"],
     "optimize-forging": ["--mesh", "4x8"], "run": ["{small_toml}"],
 }
 HUGE_TOML = """[params]

@@ -20,6 +20,7 @@ COMMANDS = {
     "forging": "signorini.app.commands.forging",
     "forging3d": "signorini.app.commands.forging3d",
     "cylinders": "signorini.app.commands.cylinders",
+    "spheres": "signorini.app.commands.spheres",
     "ironing": "signorini.app.commands.ironing",
     "optimize-forging": "signorini.app.commands.optimize_forging",
     "sweep": "signorini.app.commands.sweep",
@@ -29,7 +30,8 @@ COMMANDS = {
 
 #: the commands that write figures and VTU files (the ``signorini`` entry point
 #: starts their output helper before anything else: :func:`signorini.post.helper.start`)
-OUTPUT_HELPER = ("hertz", "hertz-friction", "hertz3d", "forging", "forging3d", "cylinders", "ironing")
+OUTPUT_HELPER = ("hertz", "hertz-friction", "hertz3d", "forging", "forging3d", "cylinders", "spheres",
+                 "ironing")
 
 #: the commands a sweep can run at every point
 SWEEPABLE = tuple(n for n in COMMANDS if n not in ("sweep", "cache"))
