@@ -239,6 +239,44 @@ def test_a_rigid_motion_of_a_patch_changes_nothing():
         assert np.abs(n1 - n0 @ A.T).max() <= 1e-12
 
 
+@pytest.mark.slow  # two problems' programs to compile; the pair's code is the patch and crown tests'
+def test_stiff_die_reproduces_the_rigid_plane():
+    """A very stiff flat block (E 1e6 times the other's) pressed into a block by a
+    displacement of its top, with sticking friction, through a 3-D pair = the
+    rigid plane moving by the same amount: the block's displacements, its support
+    reactions and their sensitivities to E and nu within the stiffness ratio."""
+    low = box(np.linspace(0, 1, 5), np.linspace(0, 1, 5), np.linspace(0, 0.5, 3))
+    up = box(np.linspace(-0.1, 1.1, 4), np.linspace(-0.1, 1.1, 4), np.linspace(0.5, 0.7, 2))
+    mesh = merge({"low": low, "up": up})
+    params = {"E": 100.0, "nu": 0.3, "Es": 1e8, "eps": 200.0, "eps_t": 200.0, "mu": 5.0, "d": -0.01}
+    fixed = [Fixed("low.z0", k) for k in range(3)]
+    method = sg.Coulomb()
+    stiff = sg.Problem(mesh, Bodies({"low": LinearElastic(), "up": LinearElastic(E="Es")}), params,
+                       fixed=fixed + [Fixed("up.z1", 0), Fixed("up.z1", 1), Fixed("up.z1", 2, "d")],
+                       contact=[pair("low.z1", "up.z0", method)])
+    rigid = sg.Problem(low, LinearElastic(), params, fixed=[Fixed("z0", k) for k in range(3)],
+                       contact=[sg.Contact(sg.Plane((0.0, 0.0, 0.5), (0.0, 0.0, -1.0), (0.0, 0.0, "d")),
+                                           "z1", method)])
+    names = ["E", "nu"]
+    a = sg.solve(stiff, steps=2, wrt=names)
+    b = sg.solve(rigid, steps=2, wrt=names)
+    assert set(a.contact()["status"]) == {"stick"} and set(b.contact()["status"]) == {"stick"}
+    n = low.n_nodes
+    ua, ub = a.displacement()[:n], b.displacement()
+    assert np.abs(ub[:, :2]).max() > 0.02 * np.abs(ub[:, 2]).max()  # friction holds the expansion
+    assert np.abs(ua - ub).max() <= 1e-5 * np.abs(ub).max()
+    da, db = a.displacement_sensitivity("nu")[:n], b.displacement_sensitivity("nu")
+    assert np.abs(da - db).max() <= 1e-5 * np.abs(db).max()
+    bottom = low.node_sets["z0"]
+
+    def at_bottom(r, m):
+        return np.asarray(r)[: 3 * m].reshape(-1, 3)[bottom]
+    for r, q in ((a.reactions(), b.reactions()),) + tuple(
+            (a.reaction_sensitivity(k), b.reaction_sensitivity(k)) for k in names):
+        ra, rb = at_bottom(r, n), at_bottom(q, n)
+        assert np.abs(ra - rb).max() <= 1e-5 * np.abs(rb).max()
+
+
 def test_bad_pairs():
     mesh = blocks(2, 3)
     params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "p": 1.0}
