@@ -32,8 +32,10 @@ CASES = {
     "mindlin-0.25": ["spheres", "--set", f"mu={MU}", "--set", f"Q={0.25 * MU * P}", "--no-fd"],
     "mindlin-0.5": ["spheres", "--set", f"mu={MU}", "--set", f"Q={0.5 * MU * P}", "--no-fd"],
     "mindlin-0.75": ["spheres", "--set", f"mu={MU}", "--set", f"Q={0.75 * MU * P}", "--no-fd"],
+    "mindlin-0.5-fine": ["spheres", "--set", f"mu={MU}", "--set", f"Q={0.5 * MU * P}", "--no-fd",
+                         "--n-fine", "12"],
     # the rigid sphere with friction, 10 increments, of about the two-body half model's size
-    "rigid": ["hertz3d", "--set", f"mu={MU}", "--steps", "10", "--n-fine", "11", "--no-fd"],
+    "rigid": ["hertz3d", "--set", f"mu={MU}", "--steps", "10", "--n-fine", "10", "--no-fd"],
 }
 
 

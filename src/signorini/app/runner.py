@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _programs, timing
+from ..contact.area import nodal_normals
 from ..post import files as io
 from ..post import helper
 from ..sensitivity import nonsmooth
@@ -299,3 +300,27 @@ class Timer:
 
     def __call__(self) -> float:
         return time.perf_counter() - self.t0
+
+
+def master_tractions(sol, surface: int = 0) -> dict:
+    """The master surface of a contact pair at the last increment: its ``nodes``,
+    their reference positions ``X``, areas ``A``, reference outward normals ``N``
+    and the contact force on each node over its area ``t`` (n, dim): minus the
+    node's contact rows of the residual (what the pair adds to it: R = f_int -
+    f_ext + r_c). The rows come from one program per model, kept between
+    processes (a run of a model of the same structure loads it)."""
+    m = sol.model
+    mesh = m.problem.mesh
+    master = (mesh.face_set if m.dim == 3 else mesh.edge_set)(m.surfaces[surface].contact.obstacle.master)
+    nodes = np.unique(master)
+    X = np.asarray(sol.reference())
+    A = np.asarray(m.kinematics.contact_areas(X, master, nodes))
+    N = np.asarray(nodal_normals(X, master, nodes))
+    key = ("pair", "contact_rows")
+    if key not in m.cache:
+        m.cache[key] = m.program(lambda w, p, state: m.residual(w, p, 1.0, state, None, "rest")
+                                 + m.external_forces(m.reference(p), p, 1.0), "pair_contact_rows")
+    state = sol.state_before(-1)[0] if m.has_history else None
+    rows = m.cache[key](sol.increments[-1].w, sol.jax_params, state)
+    t = -np.asarray(rows)[: m.dim * m.n_nodes].reshape(-1, m.dim)[nodes] / A[:, None]
+    return {"nodes": nodes, "X": X[nodes], "A": A, "N": N, "t": t}

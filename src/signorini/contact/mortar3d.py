@@ -217,7 +217,7 @@ def build_patches(X: np.ndarray, slave_faces: np.ndarray, slave_nodes: np.ndarra
         local = {sj: 0}
         order = [sj]
 
-        def at(n):
+        def at(n, local=local, order=order):
             n = int(n)
             if n not in local:
                 local[n] = len(order)

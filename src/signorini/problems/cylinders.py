@@ -81,10 +81,17 @@ def shear(x, **v):
     h = analytical(**v)
     if "c" not in h:
         return np.zeros_like(np.asarray(x, dtype=float))
-    b, c, p0, mu = h["b"], h["c"], h["p0"], v["mu"]
+    return partial_slip(x, h["b"], h["c"], h["p0"], v["mu"])
+
+
+def partial_slip(x, a, c, p0, mu):
+    """The tangential traction of Mindlin's partial slip (magnitude) at distance
+    |x| from the centre of a contact of half-width or radius a, stick zone c:
+    mu p0 sqrt(1 - x²/a²) - (c/a) mu p0 sqrt(1 - x²/c²), the second term for
+    |x| < c (two cylinders, and Cattaneo–Mindlin's two spheres along a radius)."""
     x = np.abs(np.asarray(x, dtype=float))
-    q = mu * p0 * np.sqrt(np.clip(1 - (x / b) ** 2, 0, None))
-    inner = (c / b) * np.sqrt(np.clip(1 - (x / max(c, 1e-300)) ** 2, 0, None))
+    q = mu * p0 * np.sqrt(np.clip(1 - (x / a) ** 2, 0, None))
+    inner = (c / a) * np.sqrt(np.clip(1 - (x / max(c, 1e-300)) ** 2, 0, None))
     return q - mu * p0 * np.where(x < c, inner, 0.0)
 
 

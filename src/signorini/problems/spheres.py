@@ -46,6 +46,7 @@ from ..fem.mesh3d import Mesh3D, box
 from ..linsolve import check_size
 from ..materials import Bodies, LinearElastic
 from ..model.problem import Problem
+from .cylinders import partial_slip
 from .hertz import check_fine_zone, check_mesh_options
 from .values import checked_values
 
@@ -74,6 +75,14 @@ def pressure(r, **v):
     h = analytical(**v)
     xi = np.asarray(r) / h["a"]
     return np.where(xi < 1, h["p0"] * np.sqrt(np.clip(1 - xi**2, 0, None)), 0.0)
+
+
+def shear(r, **v):
+    """Cattaneo–Mindlin's tangential traction along a radius (magnitude; mu = 0: zero)."""
+    h = analytical(**v)
+    if "c" not in h:
+        return np.zeros_like(np.asarray(r, dtype=float))
+    return partial_slip(r, h["a"], h["c"], h["p0"], v["mu"])
 
 
 def _cap(r, R, side):

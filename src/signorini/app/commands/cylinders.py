@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...contact.area import nodal_normals
-
 from ... import timing
 from .. import validity
 from ...algorithms.newton import NewtonOptions
@@ -24,8 +22,8 @@ from ..options import (
     newton_options, parse_sets, path_options, positive_float, positive_int, solver_options,
     with_defaults)
 from ..runner import (
-    Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
-    use_solver, write_summary)
+    Timer, master_tractions, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
+    summary_header, use_solver, write_summary)
 
 NAME = "cylinders"
 RTOL = 1e-10
@@ -234,35 +232,13 @@ def _lower(sol, names) -> dict:
 
 def _upper(sol) -> dict:
     """contact_upper.csv: the master (upper) surface's nodes sorted by x: the contact
-    force on each node over its area, as a pressure p_N and a traction p_T along
-    +x. The force is minus the node's contact rows of the residual (what the pair
-    adds to the residual: R = f_int - f_ext + r_c)."""
-    m = sol.model
-    master = m.problem.mesh.edge_set(m.surfaces[0].contact.obstacle.master)
-    nodes = np.unique(master)
-    X = np.asarray(sol.reference())
-    A = np.asarray(m.kinematics.contact_areas(X, master, nodes))
-    N = np.asarray(nodal_normals(X, master, nodes))
-    state = sol.state_before(-1)[0] if m.has_history else None
-    rows = _contact_rows(m)(sol.increments[-1].w, sol.jax_params, state)
-    t = -np.asarray(rows)[: m.dim * m.n_nodes].reshape(-1, m.dim)[nodes] / A[:, None]
-    order = np.argsort(X[nodes, 0])
-    return {"x": X[nodes, 0][order], "y": X[nodes, 1][order],
-            "p_N": -np.sum(t * N, axis=1)[order], "p_T": t[order, 0]}
-
-
-def _contact_rows(m):
-    """(w, params, state) -> the contact forces of the residual at t = 1 (its
-    "rest" part, contact minus external forces, plus the external forces): one
-    program per model (in its cache), kept between processes by the model's
-    program facility, so that a run of a model of the same structure loads it
-    instead of tracing and compiling it again."""
-    key = ("cylinders", "contact_rows")
-    if key not in m.cache:
-        m.cache[key] = m.program(lambda w, p, state: m.residual(w, p, 1.0, state, None, "rest")
-                                 + m.external_forces(m.reference(p), p, 1.0),
-                                 "cylinders_contact_rows")
-    return m.cache[key]
+    force on each node over its area (:func:`~signorini.app.runner.master_tractions`),
+    as a pressure p_N and a traction p_T along +x."""
+    f = master_tractions(sol)
+    X, t = f["X"], f["t"]
+    order = np.argsort(X[:, 0])
+    return {"x": X[order, 0], "y": X[order, 1], "p_N": -np.sum(t * f["N"], axis=1)[order],
+            "p_T": t[order, 0]}
 
 
 def _figures(out, c, up, an, v, friction: bool, names) -> None:

@@ -9,20 +9,47 @@ from __future__ import annotations
 import numpy as np
 
 from ... import timing
-from .. import validity
 from ...algorithms.newton import NewtonOptions
-from ...contact.area import face_areas, nodal_normals
 from ...design.finite_differences import finite_difference
-from ...post import files as io, plots
+from ...post import files as io
+from ...post import plots
 from ...problems.hertz3d import pressure_dR
 from ...problems.hertz_friction import stick_zone
-from ...problems.spheres import DEFAULTS, analytical, extents, pressure, spheres_problem
+from ...problems.spheres import (
+    DEFAULTS,
+    analytical,
+    extents,
+    pressure,
+    shear,
+    spheres_problem,
+)
+from .. import validity
 from ..options import (
-    UNITS, Formatter, command_options, finish, fmt_fd, newton_options, parse_sets, path_options,
-    positive_float, positive_int, solver_options, with_defaults)
+    UNITS,
+    Formatter,
+    command_options,
+    finish,
+    fmt_fd,
+    newton_options,
+    parse_sets,
+    path_options,
+    positive_float,
+    positive_int,
+    solver_options,
+    with_defaults,
+)
 from ..runner import (
-    Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
-    use_solver, write_summary)
+    Timer,
+    master_tractions,
+    max_rel_diff,
+    newton_log,
+    prepare_output,
+    solve_or_report,
+    solver_entries,
+    summary_header,
+    use_solver,
+    write_summary,
+)
 
 NAME = "spheres"
 RTOL = 1e-10
@@ -234,40 +261,12 @@ def _lower(sol, names) -> dict:
 
 def _upper(sol) -> dict:
     """contact_upper.csv: the master (upper) surface's nodes: x, y, z, r and the
-    pressure p_N from the contact force on each node over its area (minus the
-    node's contact rows of the residual, along the surface's normal)."""
-    m = sol.model
-    master = m.problem.mesh.face_set(m.surfaces[0].contact.obstacle.master)
-    nodes = np.unique(master)
-    X = np.asarray(sol.reference())
-    A = np.asarray(face_areas(X, master, nodes))
-    N = np.asarray(nodal_normals(X, master, nodes))
-    state = sol.state_before(-1)[0] if m.has_history else None
-    rows = _contact_rows(m)(sol.increments[-1].w, sol.jax_params, state)
-    t = -np.asarray(rows)[: m.dim * m.n_nodes].reshape(-1, m.dim)[nodes] / A[:, None]
-    return {"x": X[nodes, 0], "y": X[nodes, 1], "z": X[nodes, 2],
-            "r": np.hypot(X[nodes, 0], X[nodes, 1]), "p_N": -np.sum(t * N, axis=1)}
-
-
-def _contact_rows(m):
-    """(w, params, state) -> the contact forces of the residual at t = 1, one program
-    per model (kept between processes)."""
-    key = ("spheres", "contact_rows")
-    if key not in m.cache:
-        m.cache[key] = m.program(lambda w, p, state: m.residual(w, p, 1.0, state, None, "rest")
-                                 + m.external_forces(m.reference(p), p, 1.0),
-                                 "spheres_contact_rows")
-    return m.cache[key]
-
-
-def _mindlin(x, v):
-    """Cattaneo–Mindlin's tangential traction along a radius (magnitude)."""
-    h = analytical(**v)
-    a, c, p0, mu = h["a"], h["c"], h["p0"], v["mu"]
-    x = np.abs(np.asarray(x, dtype=float))
-    q = mu * p0 * np.sqrt(np.clip(1 - (x / a) ** 2, 0, None))
-    inner = (c / a) * np.sqrt(np.clip(1 - (x / max(c, 1e-300)) ** 2, 0, None))
-    return q - mu * p0 * np.where(x < c, inner, 0.0)
+    pressure p_N from the contact force on each node over its area
+    (:func:`~signorini.app.runner.master_tractions`)."""
+    f = master_tractions(sol)
+    X = f["X"]
+    return {"x": X[:, 0], "y": X[:, 1], "z": X[:, 2], "r": np.hypot(X[:, 0], X[:, 1]),
+            "p_N": -np.sum(f["t"] * f["N"], axis=1)}
 
 
 def _figures(out, c, up, an, v, friction: bool, names) -> None:
@@ -292,7 +291,7 @@ def _figures(out, c, up, an, v, friction: bool, names) -> None:
         line = c["line"]
         xa = np.linspace(-1.5 * a, 1.5 * a, 600)
         plots.curves(out / "traction.png", [
-            {"x": xa, "y": _mindlin(xa, v), "label": "Cattaneo-Mindlin"},
+            {"x": xa, "y": shear(xa, **v), "label": "Cattaneo-Mindlin"},
             {"x": line["x"], "y": np.abs(line["p_x"]), "label": "FE, lower surface, y = 0", "style": "points"},
             {"x": xa, "y": v["mu"] * pressure(np.abs(xa), **v), "label": "mu x Hertz pressure"}],
             xlabel="x [mm]", ylabel="q [N/mm²]", title="Two spheres: tangential traction",
