@@ -277,6 +277,34 @@ def test_stiff_die_reproduces_the_rigid_plane():
         assert np.abs(ra - rb).max() <= 1e-5 * np.abs(rb).max()
 
 
+def test_the_master_boundary_over_a_slave_node_is_a_switch():
+    """Hand-made flat surfaces: a slave grid of 3 x 3 squares (z = 0, facing up)
+    under a master grid facing down whose boundary edge x = 1 passes exactly over
+    the slave nodes at x = 1 (the master reaching beyond the slave elsewhere).
+    The nodes with a face vertex on that line (x = 0, 1, 2) are at a switch, not
+    those at x = 3; moved by 1e-3 along x, none is; and the partner matrices
+    follow the overlaps."""
+    from signorini.contact import mortar3d
+    slave = box(np.arange(4.0), np.arange(4.0), [-1.0, 0.0])
+    master = box(np.linspace(-1, 1, 3), np.linspace(-1, 4, 6), [0.0, 1.0])
+    X = np.vstack([slave.nodes, master.nodes])
+    sf = slave.face_set("z1")
+    mf = master.face_set("z0") + slave.n_nodes
+    nodes = np.unique(sf)
+    patches = mortar3d.build_patches(X, sf, nodes, mf, None, "t")
+    on = mortar3d.boundary_switches(X, patches, mf, 1e-6)
+    assert set(np.round(X[nodes[on], 0], 9)) == {0.0, 1.0, 2.0}
+    assert not on[np.isclose(X[nodes, 0], 3.0)].any()
+    moved = X.copy()
+    moved[slave.n_nodes:, 0] += 1e-3
+    assert not mortar3d.boundary_switches(moved, patches, mf, 1e-6).any()
+    now = mortar3d.partners(moved, patches, sf, nodes, mf)
+    covered = np.asarray(now.sum(axis=1)).ravel() > 0  # nodes with a face under the master
+    assert set(np.round(X[nodes[covered], 0], 9)) == {0.0, 1.0, 2.0}
+    assert not mortar3d.outside(now, mortar3d.candidates(patches, len(mf))).any()
+    assert mortar3d.changed(now, mortar3d.partners(X, patches, sf, nodes, mf)).any()
+
+
 def test_bad_pairs():
     mesh = blocks(2, 3)
     params = {"E": 100.0, "nu": 0.3, "eps": 100.0, "p": 1.0}

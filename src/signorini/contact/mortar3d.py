@@ -392,3 +392,61 @@ def changed(now, before) -> np.ndarray:
     """(nc,) True where a node's partners differ between two configurations."""
     diff = (now.astype(np.int8) - before.astype(np.int8))
     return np.asarray(abs(diff).sum(axis=1)).ravel() > 0
+
+
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """(k, 2) the edges of a face set that belong to one face only: its boundary."""
+    f, nv = _pad4(faces)
+    edges = [np.stack([f[nv == n][:, a], f[nv == n][:, (a + 1) % n]], axis=1)
+             for n in (3, 4) for a in range(n) if (nv == n).any()]
+    edges = np.concatenate(edges)
+    key = np.sort(edges, axis=1)
+    _, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return edges[count[inv.ravel()] == 1]
+
+
+def boundary_switches(x: np.ndarray, patches: Patches3D, master_faces: np.ndarray,
+                      tol: float) -> np.ndarray:
+    """(nc,) True where, in the configuration ``x``, an edge of the master surface's
+    boundary passes over a vertex of one of the slave node's faces (the node
+    itself or a neighbour), to ``tol`` of the face's size in the plane of the
+    node's faces and within one face size along its normal: there the covered
+    part of one of the node's faces starts or stops growing, and its dual
+    functions and Ā_j have a kink (the 3-D master end; docs/theory.md §13.10)."""
+    x = np.asarray(x, float)
+    edges = boundary_edges(master_faces)
+    out = np.zeros(patches.nodes.shape[0], bool)
+    if not len(edges):
+        return out
+    on_edge = {}
+    for k, (a, b) in enumerate(edges):
+        on_edge.setdefault(int(a), []).append(k)
+        on_edge.setdefault(int(b), []).append(k)
+    for j in range(patches.nodes.shape[0]):
+        nodes = patches.nodes[j]
+        faces = patches.slave_faces[j][patches.slave_mask[j] > 0]
+        nv = patches.slave_nv[j][patches.slave_mask[j] > 0]
+        verts = np.unique(np.concatenate([nodes[f[:n]] for f, n in zip(faces, nv)]))
+        masters = nodes[patches.master_faces[j][patches.master_mask[j] > 0]].ravel()
+        ks = sorted({k for m in np.unique(masters) for k in on_edge.get(int(m), ())})
+        if not ks:
+            continue
+        V = x[verts]
+        c, n, e1, e2, r = face_frames(x, np.asarray([nodes[f] for f in faces]), nv)
+        nrm = n.sum(axis=0)
+        nrm /= np.linalg.norm(nrm)
+        h = 2.0 * r.mean()
+        u = e1[0] - (e1[0] @ nrm) * nrm
+        u /= np.linalg.norm(u)
+        E = np.stack([u, np.cross(nrm, u)], axis=1)  # the plane of the node's faces
+        A, B = x[edges[ks, 0]], x[edges[ks, 1]]
+        pa, pb, pv = (A - V.mean(axis=0)) @ E, (B - V.mean(axis=0)) @ E, (V - V.mean(axis=0)) @ E
+        d = pb - pa  # (e, 2)
+        L2 = np.maximum(np.sum(d * d, axis=1), 1e-300)
+        t = np.clip(np.einsum("vi,ei->ve", pv, d) - np.einsum("ei,ei->e", pa, d)[None, :], 0, None) / L2
+        t = np.minimum(t, 1.0)
+        closest = pa[None] + t[..., None] * d[None]
+        dist = np.linalg.norm(pv[:, None, :] - closest, axis=2)
+        depth = np.abs(((A + B) / 2 - V.mean(axis=0)) @ nrm)
+        out[j] = bool(np.any((dist <= tol * h) & (depth[None, :] <= h)))
+    return out

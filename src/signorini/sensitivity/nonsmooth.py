@@ -98,6 +98,8 @@ class SwitchDetector:
             s = m.surfaces[i]
             closed = surf[i]["p_N"] > 0
             if m.dim == 3:
+                on = mortar3d.boundary_switches(x, s.patches, master, self.tol) & closed
+                ends[i] = [int(n) for n in s.nodes[on]]
                 now = mortar3d.partners(x, s.patches, s.edges, s.nodes, master)
                 before = self._partners.get(i)
                 if before is not None:
