@@ -136,6 +136,7 @@ LONG_RUNS = {
     "forging": ["--mesh", "20x40", "--no-fd"],
     "forging3d": ["--mesh", "6x6", "--no-fd"],
     "cylinders": ["--refine", "2", "--no-fd"],
+    "spheres": ["--n-fine", "12", "--no-fd"],
     "ironing": ["--no-fd"],
     "optimize-forging": ["--mu", "0.1", "--maxiter", "3"],
     "run": [os.path.join(os.path.dirname(__file__), "..", "..", "examples", "block.toml")],
