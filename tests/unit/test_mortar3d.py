@@ -239,6 +239,30 @@ def test_a_rigid_motion_of_a_patch_changes_nothing():
         assert np.abs(n1 - n0 @ A.T).max() <= 1e-12
 
 
+@pytest.mark.slow  # the kernel's invariance under any rotation: the patch test above, in CI
+def test_a_rigid_motion_of_the_whole_problem_changes_nothing(crown):
+    """The crown problem turned by 90 degrees about z and moved (its supports
+    turned with it: what held x now holds y and the reverse, the slide d now
+    along y): pressures, status, the traction vectors (turned) and the
+    pressures' sensitivities equal the original's to 1e-9."""
+    pb, sol = crown
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    b = np.array([2.0, -3.0, 1.5])
+    m = pb.mesh
+    mesh = Mesh3D(m.nodes @ R.T + b, m.cells, m.node_sets, m.face_sets)
+    fixed = ([Fixed("low.z0", k) for k in range(3)] + [Fixed("up.z1", 0)]
+             + [Fixed("up.z1", 1, "d", ramp=sg.Ramp(0.5, 1.0))])
+    turned = dataclasses.replace(pb, mesh=mesh, fixed=fixed, shape={"c": pb.shape["c"] @ R.T})
+    a, t = sol.contact(), sg.solve(turned, steps=STEPS, wrt=NAMES).contact()
+    scale = np.abs(a["p_N"]).max()
+    assert np.array_equal(a["status"], t["status"])
+    assert np.abs(a["p_N"] - t["p_N"]).max() <= 1e-9 * scale
+    assert np.abs(a["traction"] @ R.T - t["traction"]).max() <= 1e-9 * scale
+    for n in NAMES:
+        d = np.abs(a["dp_N_d" + n]).max()
+        assert np.abs(a["dp_N_d" + n] - t["dp_N_d" + n]).max() <= 1e-9 * d, n
+
+
 @pytest.mark.slow  # two problems' programs to compile; the pair's code is the patch and crown tests'
 def test_stiff_die_reproduces_the_rigid_plane():
     """A very stiff flat block (E 1e6 times the other's) pressed into a block by a
