@@ -21,6 +21,7 @@ def test_the_command_against_hertz_and_its_sensitivities(tmp_path):
     assert abs(s["a"]["error_in_cells"]) < 1.0
     assert set(s["ddm_vs_fd_rel_diff"]) == {"R1", "R2", "E1", "P"}
     assert max(s["ddm_vs_fd_rel_diff"].values()) < 1e-6
+    assert s["analytical_comparison"] == {"valid": True, "why": []}  # the bodies are half-spaces
     for f in ("contact.csv", "contact_upper.csv", "pressure.png", "sensitivity.png", "spheres.vtu"):
         assert (tmp_path / f).stat().st_size > 0
     up = np.genfromtxt(tmp_path / "contact_upper.csv", delimiter=",", names=True)
