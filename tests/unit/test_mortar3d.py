@@ -322,11 +322,11 @@ def test_the_master_boundary_over_a_slave_node_is_a_switch():
     moved = X.copy()
     moved[slave.n_nodes:, 0] += 1e-3
     assert not mortar3d.boundary_switches(moved, patches, mf, 1e-6).any()
-    now = mortar3d.partners(moved, patches, sf, nodes, mf)
+    now = mortar3d.partners(moved, sf, nodes, mf)
     covered = np.asarray(now.sum(axis=1)).ravel() > 0  # nodes with a face under the master
     assert set(np.round(X[nodes[covered], 0], 9)) == {0.0, 1.0, 2.0}
     assert not mortar3d.outside(now, mortar3d.candidates(patches, len(mf))).any()
-    assert mortar3d.changed(now, mortar3d.partners(X, patches, sf, nodes, mf)).any()
+    assert mortar3d.changed(now, mortar3d.partners(X, sf, nodes, mf)).any()
 
 
 def test_bad_pairs():

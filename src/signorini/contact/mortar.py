@@ -157,6 +157,23 @@ class Patches:
         return bool(self.master_mask.any())
 
 
+def check_separate(slave, master, name: str) -> None:
+    """A pair's two surfaces (edge or face sets) must share no node."""
+    common = np.intersect1d(np.unique(slave), np.unique(master))
+    if common.size:
+        raise InputError(f"contact pair {name!r}: the slave and master surfaces share "
+                         f"{common.size} node(s) (first: node {int(common[0])}); a pair needs two "
+                         "surfaces that can separate")
+
+
+def default_search(X, slave_nodes, search):
+    """``search``, or when None the size of the slave surface's bounding box."""
+    if search is not None:
+        return search
+    box = X[slave_nodes].max(axis=0) - X[slave_nodes].min(axis=0)
+    return float(max(box.max(), 1e-300))
+
+
 def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarray,
                   master_edges: np.ndarray, search: float | None, name: str,
                   slide: float | None = None) -> Patches:
@@ -166,20 +183,14 @@ def build_patches(X: np.ndarray, slave_edges: np.ndarray, slave_nodes: np.ndarra
     segments, it faces it (opposite normals: n_e . n_m < 0), its projection on
     the segment's line overlaps the segment extended by half its length on each
     side (and by ``slide``), and its distance along the normal is below ``search``."""
-    if np.intersect1d(np.unique(slave_edges), np.unique(master_edges)).size:
-        common = np.intersect1d(np.unique(slave_edges), np.unique(master_edges))
-        raise InputError(f"contact pair {name!r}: the slave and master surfaces share "
-                         f"{common.size} node(s) (first: node {int(common[0])}); a pair needs two "
-                         "surfaces that can separate")
+    check_separate(slave_edges, master_edges, name)
     nc = len(slave_nodes)
     prev = np.full(nc, -1)
     nxt = np.full(nc, -1)
     pos = np.searchsorted(slave_nodes, slave_edges)
     prev[pos[:, 1]] = slave_edges[:, 0]
     nxt[pos[:, 0]] = slave_edges[:, 1]
-    if search is None:
-        box = X[slave_nodes].max(axis=0) - X[slave_nodes].min(axis=0)
-        search = float(max(box.max(), 1e-300))
+    search = default_search(X, slave_nodes, search)
     # (n_slave_edges, n_master_edges) candidate matrix
     L = np.linalg.norm(X[slave_edges[:, 1]] - X[slave_edges[:, 0]], axis=1)
     xc, xd, gc, gd, facing = _projections(X[slave_edges], X, master_edges)

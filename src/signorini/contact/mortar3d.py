@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jax import jax, jnp
-from ..errors import InputError
 from . import clip3d
+from .mortar import check_separate, default_search
 
 #: the gap given to a slave node that no master face covers (open), relative to
 #: the patch size (as in 2-D)
@@ -184,17 +184,11 @@ def build_patches(X: np.ndarray, slave_faces: np.ndarray, slave_nodes: np.ndarra
                   slide: float | None = None) -> Patches3D:
     """The patches of every slave node of a 3-D pair (NumPy, on the nominal
     reference mesh ``X``; docs/theory.md §13.10)."""
-    common = np.intersect1d(np.unique(slave_faces), np.unique(master_faces))
-    if common.size:
-        raise InputError(f"contact pair {name!r}: the slave and master surfaces share "
-                         f"{common.size} node(s) (first: node {int(common[0])}); a pair needs two "
-                         "surfaces that can separate")
+    check_separate(slave_faces, master_faces, name)
     sf, snv = _pad4(slave_faces)
     mf, mnv = _pad4(master_faces)
-    if search is None:
-        box = X[slave_nodes].max(axis=0) - X[slave_nodes].min(axis=0)
-        search = float(max(box.max(), 1e-300))
-    cand = candidate_faces(X, sf, snv, mf, mnv, search, float(slide or 0.0))
+    cand = candidate_faces(X, sf, snv, mf, mnv, default_search(X, slave_nodes, search),
+                           float(slide or 0.0))
     nc = len(slave_nodes)
     pos = {int(n): k for k, n in enumerate(slave_nodes)}
     around: list[list[int]] = [[] for _ in range(nc)]
@@ -341,24 +335,34 @@ class MortarNode3D:
 
 
 # ------------------------------------------------- partners in the current state
-def partners(x: np.ndarray, patches: Patches3D, slave_faces: np.ndarray, slave_nodes: np.ndarray,
-             master_faces: np.ndarray, reach: float = 1.0):
+def partners(x: np.ndarray, slave_faces: np.ndarray, slave_nodes: np.ndarray,
+             master_faces: np.ndarray, reach: float = 1.0, memo: dict | None = None):
     """(nc, n_master_faces) sparse boolean matrix: in the configuration ``x`` (all
     nodes' positions), the master faces that face one of a slave node's faces,
-    overlap its projection on the face's plane, and lie within ``reach`` face
-    diameters of it along its normal (the 3-D version of
-    :func:`signorini.contact.mortar.partners`)."""
+    overlap its projection on the face's plane, and lie within ``reach`` (<= 1)
+    face diameters of it along its normal (the 3-D version of
+    :func:`signorini.contact.mortar.partners`). ``memo`` (a dict kept by the
+    caller) holds the last configuration's overlaps, so that the increment checks
+    and the switch detector find them once per increment, at any reach."""
     import scipy.sparse as sp  # lazy: only the partner reports of finite sliding need it
+    x = np.asarray(x, float)
     sf, snv = _pad4(slave_faces)
     mf, mnv = _pad4(master_faces)
-    cs, ns, _, _, rs = face_frames(np.asarray(x, float), sf, snv)
-    cand = candidate_faces(np.asarray(x, float), sf, snv, mf, mnv, None, 0.0, margin=0.0)
-    if reach != 1.0:
-        cm = face_frames(np.asarray(x, float), mf, mnv)[0]
-        cand = [c[np.abs((cm[c] - cs[e]) @ ns[e]) <= reach * 2.0 * rs[e]] for e, c in enumerate(cand)]
+    kept = None if memo is None else memo.get("last")
+    if kept is not None and np.array_equal(kept[0], x):
+        cand, dist = kept[1]
+    else:
+        cs, ns, _, _, rs = face_frames(x, sf, snv)
+        cand = candidate_faces(x, sf, snv, mf, mnv, None, 0.0, margin=0.0)
+        cm = face_frames(x, mf, mnv)[0]
+        # the normal distance of each overlapping master face, in slave-face diameters
+        dist = [np.abs((cm[c] - cs[e]) @ ns[e]) / (2.0 * rs[e]) for e, c in enumerate(cand)]
+        if memo is not None:
+            memo["last"] = (x.copy(), (cand, dist))
     pos = np.searchsorted(slave_nodes, sf)
     rows, cols = [], []
-    for e, c in enumerate(cand):
+    for e, (c, d) in enumerate(zip(cand, dist)):
+        c = c[d <= reach]
         for a in range(snv[e]):
             rows.append(np.full(len(c), pos[e, a]))
             cols.append(c)
@@ -432,7 +436,8 @@ def boundary_switches(x: np.ndarray, patches: Patches3D, master_faces: np.ndarra
         if not ks:
             continue
         V = x[verts]
-        c, n, e1, e2, r = face_frames(x, np.asarray([nodes[f] for f in faces]), nv)
+        o = V.mean(axis=0)
+        _, n, e1, _, r = face_frames(x, np.asarray([nodes[f] for f in faces]), nv)
         nrm = n.sum(axis=0)
         nrm /= np.linalg.norm(nrm)
         h = 2.0 * r.mean()
@@ -440,13 +445,13 @@ def boundary_switches(x: np.ndarray, patches: Patches3D, master_faces: np.ndarra
         u /= np.linalg.norm(u)
         E = np.stack([u, np.cross(nrm, u)], axis=1)  # the plane of the node's faces
         A, B = x[edges[ks, 0]], x[edges[ks, 1]]
-        pa, pb, pv = (A - V.mean(axis=0)) @ E, (B - V.mean(axis=0)) @ E, (V - V.mean(axis=0)) @ E
+        pa, pb, pv = (A - o) @ E, (B - o) @ E, (V - o) @ E
         d = pb - pa  # (e, 2)
         L2 = np.maximum(np.sum(d * d, axis=1), 1e-300)
         t = np.clip(np.einsum("vi,ei->ve", pv, d) - np.einsum("ei,ei->e", pa, d)[None, :], 0, None) / L2
         t = np.minimum(t, 1.0)
         closest = pa[None] + t[..., None] * d[None]
         dist = np.linalg.norm(pv[:, None, :] - closest, axis=2)
-        depth = np.abs(((A + B) / 2 - V.mean(axis=0)) @ nrm)
+        depth = np.abs(((A + B) / 2 - o) @ nrm)
         out[j] = bool(np.any((dist <= tol * h) & (depth[None, :] <= h)))
     return out

@@ -316,10 +316,9 @@ class IncrementChecks:
             s = m.surfaces[i]
             closed = now[1][i][1]
             if m.dim == 3:
-                lost = ((mortar3d.outside(mortar3d.partners(x, s.patches, s.edges, s.nodes, master), cand)
-                         & closed)
-                        | mortar3d.outside(mortar3d.partners(x, s.patches, s.edges, s.nodes, master, 0.5),
-                                           cand))
+                near = [mortar3d.outside(mortar3d.partners(x, s.edges, s.nodes, master, r, self.memo[i]),
+                                         cand) for r in (1.0, 0.5)]
+                lost = (near[0] & closed) | near[1]
             else:
                 dist = np.where(cand, np.inf, mortar.partner_distances(x, s.patches, master, self.memo[i]))
                 lost = (np.any(dist <= 1.0, axis=1) & closed) | np.any(dist <= 0.5, axis=1)

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..contact import AugmentedLagrangian, Coulomb
 from ..contact.mortar import pair
-from .values import checked_values
+from .values import check_partial_slip, checked_values
 from ..errors import InputError
 from ..fem.loads import Fixed, Pressure, Ramp, Traction
 from ..fem.mesh import Mesh, graded_coordinates, merge, rectangle
@@ -196,10 +196,7 @@ def cylinders_problem(params: dict | None = None, *, refine: int = 0, n_fine: in
     values = checked_values("cylinders problem", DEFAULTS, params, extra=("eps", "eps_t"),
                             positive=("R1", "R2", "E1", "E2", "P"), nonnegative=("mu", "Q"))
     values = {k: float(v) for k, v in values.items()}
-    if values["Q"] > 0 and not values["Q"] < values["mu"] * values["P"]:
-        raise InputError(f"cylinders problem: Q = {values['Q']} must stay below mu P = "
-                         f"{values['mu'] * values['P']} (Mindlin's partial slip; at Q >= mu P the "
-                         "upper body slides away)")
+    check_partial_slip("cylinders problem", values)
     what = "the two-cylinder mesh"
     hint = "a coarser mesh (smaller --refine or --n-fine)"
     # the lower body's fine zone on one side of the contact: a lower bound

@@ -48,7 +48,7 @@ from ..materials import Bodies, LinearElastic
 from ..model.problem import Problem
 from .cylinders import partial_slip
 from .hertz import check_fine_zone, check_mesh_options
-from .values import checked_values
+from .values import check_partial_slip, checked_values
 
 DEFAULTS = {"R1": 1.0, "R2": 1.0, "E1": 100.0, "E2": 100.0, "nu1": 0.3, "nu2": 0.3, "P": 0.1,
             "mu": 0.0, "Q": 0.0}
@@ -196,10 +196,7 @@ def spheres_problem(params: dict | None = None, *, refine: int = 0, n_fine: int 
     values = checked_values("spheres problem", DEFAULTS, params, extra=("eps", "eps_t"),
                             positive=("R1", "R2", "E1", "E2", "P"), nonnegative=("mu", "Q"))
     values = {k: float(v) for k, v in values.items()}
-    if values["Q"] > 0 and not values["Q"] < values["mu"] * values["P"]:
-        raise InputError(f"spheres problem: Q = {values['Q']} must stay below mu P = "
-                         f"{values['mu'] * values['P']} (Mindlin's partial slip; at Q >= mu P the "
-                         "upper body slides away)")
+    check_partial_slip("spheres problem", values)
     friction = values["mu"] > 0
     what = "the two-sphere mesh"
     hint = "a coarser mesh (smaller --refine or --n-fine)" + (

@@ -46,3 +46,12 @@ def checked_values(problem: str, defaults: Mapping, params: Mapping | None, *, e
         if not values[k] >= 0:
             raise InputError(f"{tag}: {k} must be >= 0, got {values[k]}")
     return values
+
+
+def check_partial_slip(problem: str, values: Mapping) -> None:
+    """Q must stay below mu P (Mindlin's partial slip) where a tangential force Q
+    follows the normal force P of a two-body example."""
+    if values["Q"] > 0 and not values["Q"] < values["mu"] * values["P"]:
+        raise InputError(f"{problem}: Q = {values['Q']} must stay below mu P = "
+                         f"{values['mu'] * values['P']} (Mindlin's partial slip; at Q >= mu P the "
+                         "upper body slides away)")

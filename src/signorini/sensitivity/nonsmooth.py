@@ -100,7 +100,8 @@ class SwitchDetector:
             if m.dim == 3:
                 on = mortar3d.boundary_switches(x, s.patches, master, self.tol) & closed
                 ends[i] = [int(n) for n in s.nodes[on]]
-                now = mortar3d.partners(x, s.patches, s.edges, s.nodes, master)
+                now = mortar3d.partners(x, s.edges, s.nodes, master,
+                                        memo=m.cache.setdefault(("partner-distances", i), {}))
                 before = self._partners.get(i)
                 if before is not None:
                     changes[i] = [int(n) for n in s.nodes[mortar3d.changed(now, before) & closed]]
