@@ -126,6 +126,7 @@ ABSURD = {
     "cylinders": ["--refine", "6"],
     "spheres": ["--n-fine", "200"],
     "ironing": ["--refine", "3"],
+    "ironing3d": ["--refine", "3"],
     "optimize-forging": ["--mesh", "3000x6000"],
     "run": ["{toml}"],
 }
@@ -134,7 +135,7 @@ ABSURD = {
 SMALL = {
     "hertz": [], "hertz-friction": [], "hertz3d": ["--n-fine", "4"], "forging": ["--mesh", "4x8"],
     "forging3d": ["--mesh", "2x2"], "cylinders": ["--n-fine", "6"], "spheres": ["--n-fine", "4"],
-    "ironing": ["--cells", "24"],
+    "ironing": ["--cells", "24"], "ironing3d": ["--cells", "24"],
     "optimize-forging": ["--mesh", "4x8"], "run": ["{small_toml}"],
 }
 HUGE_TOML = """[params]

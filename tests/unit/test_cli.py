@@ -83,7 +83,8 @@ def test_help_and_version(capsys):
     ("hertz", "hertz", "HERTZ_SET"), ("hertz-friction", "hertz_friction", "FRICTION_SET"),
     ("hertz3d", "hertz3d", "HERTZ3D_SET"), ("forging", "forging", "FORGING_SET"),
     ("forging3d", "forging3d", "FORGING3D_SET"), ("cylinders", "cylinders", "CYLINDERS_SET"),
-    ("spheres", "spheres", "SPHERES_SET"), ("ironing", "ironing", "IRONING_SET")])
+    ("spheres", "spheres", "SPHERES_SET"), ("ironing", "ironing", "IRONING_SET"),
+    ("ironing3d", "ironing3d", "IRONING3D_SET")])
 def test_benchmark_commands_share_their_option_help(capsys, command, module, names):
     """--out, --set and --no-fd of every benchmark command come from one helper
     (options.command_options, options.path_options): the same words everywhere,

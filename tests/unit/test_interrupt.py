@@ -138,6 +138,7 @@ LONG_RUNS = {
     "cylinders": ["--refine", "2", "--no-fd"],
     "spheres": ["--n-fine", "12", "--no-fd"],
     "ironing": ["--no-fd"],
+    "ironing3d": ["--no-fd"],
     "optimize-forging": ["--mu", "0.1", "--maxiter", "3"],
     "run": [os.path.join(os.path.dirname(__file__), "..", "..", "examples", "block.toml")],
 }

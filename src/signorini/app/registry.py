@@ -22,6 +22,7 @@ COMMANDS = {
     "cylinders": "signorini.app.commands.cylinders",
     "spheres": "signorini.app.commands.spheres",
     "ironing": "signorini.app.commands.ironing",
+    "ironing3d": "signorini.app.commands.ironing3d",
     "optimize-forging": "signorini.app.commands.optimize_forging",
     "sweep": "signorini.app.commands.sweep",
     "run": "signorini.app.commands.run",
@@ -31,7 +32,7 @@ COMMANDS = {
 #: the commands that write figures and VTU files (the ``signorini`` entry point
 #: starts their output helper before anything else: :func:`signorini.post.helper.start`)
 OUTPUT_HELPER = ("hertz", "hertz-friction", "hertz3d", "forging", "forging3d", "cylinders", "spheres",
-                 "ironing")
+                 "ironing", "ironing3d")
 
 #: the commands a sweep can run at every point
 SWEEPABLE = tuple(n for n in COMMANDS if n not in ("sweep", "cache"))
