@@ -143,6 +143,11 @@ class Patches:
         """What a node's kernel takes besides the patch positions (per node)."""
         return jnp.asarray(self.slave_mask), jnp.asarray(self.master_mask)
 
+    def inputs(self, X, linear: bool) -> tuple:
+        """Per slave node, what its kernel takes (``X`` the reference positions of
+        every mesh node): the patch's positions and :meth:`arrays`."""
+        return (X[self.nodes],) + self.arrays()
+
     @staticmethod
     def node(X, slave_mask, master_mask, linear: bool, axisymmetric: bool = False):
         """The pair as seen by one slave node (:class:`MortarNode`)."""

@@ -89,6 +89,13 @@ class Patches3D:
         master_nv: (nc, F, M) their vertex counts.
         master_mask: (nc, F, M) which candidates exist.
         master_index: (nc, F, M) the candidates' rows in the master face set (-1: none).
+        face_of: (nc, F) each of the node's faces as a row of the slave face set.
+        faces: (nf, 4) the slave faces (mesh nodes), nf of them.
+        faces_nv: (nf,) their vertex counts.
+        cands: (nf, M, 4) each slave face's candidate master faces (mesh nodes),
+            in the order of ``master_faces``.
+        cands_nv: (nf, M) their vertex counts.
+        cands_mask: (nf, M) which candidates exist.
     """
 
     nodes: np.ndarray
@@ -100,6 +107,12 @@ class Patches3D:
     master_nv: np.ndarray
     master_mask: np.ndarray
     master_index: np.ndarray
+    face_of: np.ndarray
+    faces: np.ndarray
+    faces_nv: np.ndarray
+    cands: np.ndarray
+    cands_nv: np.ndarray
+    cands_mask: np.ndarray
 
     def arrays(self) -> tuple:
         """What a node's kernel takes besides the patch positions (per node)."""
@@ -107,6 +120,19 @@ class Patches3D:
                 jnp.asarray(self.slave_mask), jnp.asarray(self.own),
                 jnp.asarray(self.master_faces), jnp.asarray(self.master_nv),
                 jnp.asarray(self.master_mask))
+
+    def inputs(self, X, linear: bool) -> tuple:
+        """Per slave node, what its kernel takes (``X`` the reference positions of
+        every mesh node): the patch's positions and :meth:`arrays`, and with
+        linearised kinematics the terms of its faces (:func:`face_terms`, one clip
+        per face pair for the whole surface, gathered per node)."""
+        out = (X[self.nodes],) + self.arrays()
+        if not linear:
+            return out
+        G, S, A, D, Mw, n = face_terms(X, self)
+        e = jnp.asarray(self.face_of)
+        a = jnp.asarray(self.own)
+        return out + ((G[e, a], S[e, a], A[e, a], D[e, a], Mw[e, a], n[e]),)
 
     @staticmethod
     def node(X, *arrays, linear: bool, axisymmetric: bool = False):
@@ -206,6 +232,7 @@ def build_patches(X: np.ndarray, slave_faces: np.ndarray, slave_nodes: np.ndarra
     m_nv = np.full((nc, F, M), 4, np.int64)
     m_mask = np.zeros((nc, F, M))
     m_index = np.full((nc, F, M), -1, np.int64)
+    face_of = np.zeros((nc, F), np.int64)
     for j in range(nc):
         sj = int(slave_nodes[j])
         local = {sj: 0}
@@ -223,6 +250,7 @@ def build_patches(X: np.ndarray, slave_faces: np.ndarray, slave_nodes: np.ndarra
             s_nv[j, k] = snv[e]
             s_mask[j, k] = 1.0
             own[j, k] = int(np.nonzero(sf[e][:snv[e]] == sj)[0][0])
+            face_of[j, k] = e
         for k, e in enumerate(around[j]):
             for i, m in enumerate(cand[e]):
                 m_faces[j, k, i] = [at(v) for v in mf[m]]
@@ -232,10 +260,61 @@ def build_patches(X: np.ndarray, slave_faces: np.ndarray, slave_nodes: np.ndarra
         patch_nodes.append(order)
     P = max(len(o) for o in patch_nodes)
     nodes = np.array([o + [o[0]] * (P - len(o)) for o in patch_nodes], dtype=np.int64)
-    return Patches3D(nodes, s_faces, s_nv, s_mask, own, m_faces, m_nv, m_mask, m_index)
+    nf = len(sf)
+    cands = np.repeat(sf[:, None, :], M, axis=1)  # padding: the slave face itself (masked)
+    c_nv = np.repeat(snv[:, None], M, axis=1)
+    c_mask = np.zeros((nf, M))
+    for e, c in enumerate(cand):
+        cands[e, :len(c)] = mf[c]
+        c_nv[e, :len(c)] = mnv[c]
+        c_mask[e, :len(c)] = 1.0
+    return Patches3D(nodes, s_faces, s_nv, s_mask, own, m_faces, m_nv, m_mask, m_index,
+                     face_of, sf, snv, cands, c_nv, c_mask)
 
 
 # ------------------------------------------------------------- the per-node pair
+def _face_quadrature(xs, nvs, xm, nvm, mm):
+    """The quadrature of one slave face's covered part: (w (M, NQ), Φ (M, NQ, 4),
+    the quadrature of each candidate) from the face's vertices ``xs`` (4, 3),
+    the candidates' ``xm`` (M, 4, 3) and their mask ``mm`` (M,) (masked
+    candidates are replaced by the slave face itself: well posed, weight zero)."""
+    xm = jnp.where((mm > 0)[:, None, None], xm, xs[None])
+    nvm = jnp.where(mm > 0, nvm, nvs)
+    q = jax.vmap(clip3d.overlap_quadrature, (None, 0, None, 0))(xs, xm, nvs, nvm)
+    w = q.w * mm[:, None]  # (M, NQ)
+    phi = clip3d.dual_functions(q.N_slave.reshape(-1, 4), w.reshape(-1),
+                                (jnp.arange(4) < nvs).astype(xs.dtype))
+    return w, phi.reshape(w.shape + (4,)), q
+
+
+def face_terms(X, patches: Patches3D):
+    """Per slave face (nf of them) and per vertex a of it, the reference
+    quantities of linearised kinematics (docs/theory.md §13.10), one clip per
+    face pair: ∫ Φ_a g and ∫ Φ_a r (3,) at X (from the points' gaps: exactly zero
+    where the two surfaces coincide), ∫ N_a, the weights D_ab = ∫ Φ_a N_b on the
+    face's vertices (4, 4) and M_ab = ∫ Φ_a N_b on each candidate's (4, M, 4),
+    and the face's normal (3,)."""
+    faces = jnp.asarray(patches.faces)
+    cands = jnp.asarray(patches.cands)
+
+    def one(f, nvs, c, nvm, mm):
+        xs, xm = X[f], X[c]
+        w, phi, q = _face_quadrature(xs, nvs, xm, nvm, mm)
+        n = q.normal[0]
+        wphi = w[..., None] * phi  # (M, NQ, 4): the weights of each vertex's dual function
+        vs = jnp.einsum("mqb,bk->mqk", q.N_slave, xs)
+        vm = jnp.einsum("mqb,mbk->mqk", q.N_master, xm)
+        G = jnp.einsum("mqa,mq->a", wphi, (vm - vs) @ n)
+        S = jnp.einsum("mqa,mqk->ak", wphi, vs - vm)
+        A = jnp.einsum("mq,mqa->a", w, q.N_slave)
+        D = jnp.einsum("mqa,mqb->ab", wphi, q.N_slave)
+        Mw = jnp.einsum("mqa,mqb->amb", wphi, q.N_master)
+        return G, S, A, D, Mw, n
+
+    return jax.vmap(one)(faces, jnp.asarray(patches.faces_nv), cands,
+                         jnp.asarray(patches.cands_nv), jnp.asarray(patches.cands_mask))
+
+
 class MortarNode3D:
     """The master surface as seen by one slave node of a 3-D pair: ``gap``,
     ``closest`` (the weighted slip point y_j) and ``normal`` of the node's patch
@@ -245,63 +324,63 @@ class MortarNode3D:
         X: reference positions of the patch (P, 3) (at the current parameters).
         slave_faces, slave_nv, slave_mask, own, master_faces, master_nv, master_mask:
             one node's rows of :class:`Patches3D`.
+        terms: with linearised kinematics, the terms of :func:`face_terms` of the
+            node's faces (each at the node's own vertex).
         linear: linearised kinematics (reference normals, projections and
             overlaps: G_j and S_j affine in x).
     """
 
     def __init__(self, X, slave_faces, slave_nv, slave_mask, own, master_faces, master_nv,
-                 master_mask, linear: bool):
+                 master_mask, terms=None, *, linear: bool):
         self.X = X
         self.sf, self.snv, self.smask, self.own = slave_faces, slave_nv, slave_mask, own
         self.mf, self.mnv, self.mmask = master_faces, master_nv, master_mask
         self.linear = linear
-        self._affine = None
+        self._linear = None
         if linear:
-            # G_j, S_j are affine in x (docs/theory.md §13.2): their values at X and
-            # their gradients there, once per evaluation, instead of differentiating
-            # the clip once per patch coordinate
-            (G0, S0, A0), vjp = jax.vjp(self._overlap_integrals, X)
-            zero3 = jnp.zeros(3)
-            Ga, = vjp((jnp.ones(()), zero3, jnp.zeros(())))
-            Sa = jnp.stack([vjp((jnp.zeros(()), jnp.eye(3)[k], jnp.zeros(())))[0] for k in range(3)])
-            self._affine = (G0, S0, A0, Ga, Sa)
+            if terms is None:
+                raise ValueError("MortarNode3D: linearised kinematics needs the faces' terms "
+                                 "(Patches3D.inputs)")
+            self._linear = self._coefficients(terms)
+
+    def _coefficients(self, terms):
+        """(G_j, S_j, Ā_j at x = X, Ga (P, 3), c (P,)): G_j(x) = G_j(X) + Σ_p Ga_p ·
+        (x_p − X_p) and S_j(x) = S_j(X) + Σ_p c_p (x_p − X_p), with Ga_p = Σ_e n_e
+        (M_jp − D_jp) and c_p = Σ_e (D_jp − M_jp) over the node's faces e (the
+        mortar weights of its dual function gathered on the patch's nodes)."""
+        G, S, A, D, Mw, n = terms  # (F,), (F, 3), (F,), (F, 4), (F, M, 4), (F, 3)
+        on = self.smask
+        P = self.X.shape[0]
+        c = jax.vmap(lambda sf, mf, d, m: jnp.zeros(P, self.X.dtype).at[sf].add(d).at[
+            mf.reshape(-1)].add(-m.reshape(-1)))(self.sf, self.mf, D * on[:, None],
+                                                 Mw * (on[:, None] * self.mmask)[..., None])
+        return (jnp.sum(G * on), jnp.sum(S * on[:, None], axis=0), jnp.sum(A * on),
+                -jnp.einsum("fp,fi->pi", c, n), jnp.sum(c, axis=0))
 
     def _integrals(self, x):
-        if self._affine is None:
+        if self._linear is None:
             return self._overlap_integrals(x)
-        G0, S0, A0, Ga, Sa = self._affine
+        G0, S0, A0, Ga, c = self._linear
         d = x - self.X
-        return G0 + jnp.sum(Ga * d), S0 + jnp.einsum("kpi,pi->k", Sa, d), A0
+        return G0 + jnp.sum(Ga * d), S0 + c @ d, A0
 
     def _face(self, x, f):
-        """(∫ Φ_j g, ∫ Φ_j r (3,), ∫ N_j) over slave face f's covered part."""
+        """(∫ Φ_j g, ∫ Φ_j r (3,), ∫ N_j) over slave face f's covered part in the
+        configuration x (finite kinematics: the current clip, differentiated)."""
         X = self.X
-        geo = X if self.linear else x
         on = self.smask[f] > 0
         dummy = jnp.asarray(_DUMMY, X.dtype)
         sidx, midx = self.sf[f], self.mf[f]
         nvs = jnp.where(on, self.snv[f], 4)
-        xs = jnp.where(on, geo[sidx], dummy)
-        mm = self.mmask[f] * self.smask[f]
-        xm = jnp.where((mm > 0)[:, None, None], geo[midx], xs[None])
-        nvm = jnp.where(mm > 0, self.mnv[f], nvs)
-        q = jax.vmap(clip3d.overlap_quadrature, (None, 0, None, 0))(xs, xm, nvs, nvm)
-        w = (q.w * mm[:, None]).reshape(-1)
-        Ns = q.N_slave.reshape(-1, 4)
-        Nm = q.N_master  # (M, NQ, 4)
-        phi = clip3d.dual_functions(Ns, w, (jnp.arange(4) < nvs).astype(X.dtype))
+        xs = jnp.where(on, x[sidx], dummy)
+        w, phi, q = _face_quadrature(xs, nvs, x[midx], self.mnv[f], self.mmask[f] * self.smask[f])
         pick = (jnp.arange(4) == self.own[f]).astype(X.dtype)
-        wphi = w * (phi @ pick)
+        wphi = (w * (phi @ pick)).reshape(-1)
         n = q.normal[0]
-        if self.linear:
-            vs = Ns @ x[sidx]
-            vm = jnp.einsum("mqa,mak->mqk", Nm, x[midx]).reshape(-1, 3)
-            g = (vm - vs) @ n
-            r = vs - vm
-        else:
-            g = ((q.x_master - q.x_slave) @ n).reshape(-1)
-            r = jnp.einsum("mqa,mak->mqk", Nm, X[midx]).reshape(-1, 3) - Ns @ X[sidx]
-        return jnp.sum(wphi * g), wphi @ r, w @ (Ns @ pick)
+        g = ((q.x_master - q.x_slave) @ n).reshape(-1)
+        r = (jnp.einsum("mqa,mak->mqk", q.N_master, X[midx]).reshape(-1, 3)
+             - q.N_slave.reshape(-1, 4) @ X[sidx])
+        return jnp.sum(wphi * g), wphi @ r, w.reshape(-1) @ (q.N_slave.reshape(-1, 4) @ pick)
 
     def _overlap_integrals(self, x):
         """(G_j, S_j (3,), Ā_j) summed over the node's slave faces."""

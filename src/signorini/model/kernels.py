@@ -270,7 +270,8 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         cp = c.method.values(params)
         if s.patches is not None:  # a contact pair: each slave node's patch of nodes
             pn = s.patches.nodes
-            return (X[pn] + u[pn], lam, A, geo, cp, (X[pn],) + s.patches.arrays())
+            linear = self.linear_contact[self.surfaces.index(s)]
+            return (X[pn] + u[pn], lam, A, geo, cp, s.patches.inputs(X, linear))
         x = X[s.nodes] + u[s.nodes]
         return x, lam, A, geo, cp, (X[s.nodes], nodal_normals(X, s.edges, s.nodes))
 
