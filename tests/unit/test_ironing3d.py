@@ -25,7 +25,7 @@ from signorini.design.finite_differences import finite_difference
 from signorini.errors import InputError, ResourceError, UnknownParameterError
 from signorini.linsolve import memory as resources
 from signorini.problems import ironing3d
-from signorini.problems.ironing3d import A, B, BD, X0, die_force, ironing3d_problem
+from signorini.problems.ironing3d import BD, X0, A, B, die_force, ironing3d_problem
 from signorini.sensitivity import nonsmooth
 
 STEPS = 10  # the command's default path: 2 increments press, 8 slide (0.0625 each, < h = 1/6)
@@ -148,10 +148,12 @@ def test_die_force_and_partner_changes(ironed):
     ratio = F[sliding, 1] / F[sliding, 0]
     mu = pb.params["mu"]
     # the die is curved, so F_T / F_N is not mu exactly (the 2-D problem's 0.2925
-    # at 96 cells); on this coarse mesh (6 to 8 closed nodes) each increment's value
-    # scatters with the partners' positions: MEASURED_SCATTER of mu, the mean RATIO_MEAN
-    assert np.all(np.abs(ratio - mu) < MEASURED_SCATTER * mu), ratio
-    assert abs(ratio.mean() - mu) < RATIO_MEAN * mu, ratio
+    # at 96 cells). On this coarsest mesh (6 to 8 closed nodes, the die's arc 4 faces)
+    # each increment's value moves with the die's facets over the block's nodes:
+    # measured 0.2613 to 0.3318 past t = 0.4 (within 13 % of mu), their mean 0.2932
+    # (2.3 % below mu; the 2-D problem's 48 cells: within 4 %, the mean within 3 %)
+    assert np.all(np.abs(ratio - mu) < 0.15 * mu), ratio
+    assert abs(ratio.mean() - mu) < 0.03 * mu, ratio
     c = sol.contact()
     closed = c["p_N"] > 0
     assert closed.sum() >= 6 and np.all(c["status"][closed] == "slip")
