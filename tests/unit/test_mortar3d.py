@@ -345,3 +345,34 @@ def test_bad_pairs():
     with pytest.raises(InputError, match="one kind of cell"):
         low = box(np.linspace(0, 1, 2), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
         merge({"a": low, "b": tetrahedra(low)})
+
+
+@pytest.mark.parametrize("tets", [False, True], ids=["quadrilaterals", "triangles"])
+def test_face_terms_are_the_dual_mortar_weights(tets):
+    """The terms of linearised kinematics, one clip per face pair (mortar3d.face_terms):
+    on a wholly covered slave face D_ab = ∫ Φ_a N_b is diagonal with ∫ N_a (the
+    dual functions' biorthogonality), each row of M_ab = ∫ Φ_a N_b over the master
+    vertices sums to ∫ N_a too (so a rigid translation of both surfaces changes no
+    gap), and the gap and slip integrals of two coincident surfaces vanish to the
+    round-off of the positions;
+    the face areas add up to the slave surface's (its faces grown by the clip's
+    band of CLIP_TOL x an edge's length on each side, docs/theory.md §13.9)."""
+    from signorini.contact import clip3d
+    from signorini.contact.mortar3d import build_patches, face_terms
+    lower = box(np.linspace(0, 1, 5), np.linspace(0, 1, 5), [0.0, 0.5])
+    upper = box(np.linspace(-0.1, 1.1, 8), np.linspace(-0.1, 1.1, 8), [0.5, 1.0])
+    if tets:
+        lower, upper = tetrahedra(lower), tetrahedra(upper)
+    mesh = merge({"lower": lower, "upper": upper})
+    sf, mf = mesh.face_sets["lower.z1"], mesh.face_sets["upper.z0"]
+    nodes = np.unique(sf)
+    pt = build_patches(mesh.nodes, sf, nodes, mf, None, "test")
+    G, S, A, D, Mw, n = (np.asarray(a) for a in face_terms(jnp.asarray(mesh.nodes), pt))
+    k = sf.shape[1]
+    area = np.einsum("fa->f", A[:, :k])
+    assert np.abs(area - area.mean()).max() <= 1e-13 and abs(area.sum() - 1.0) <= 10 * clip3d.CLIP_TOL
+    for f in range(len(sf)):
+        assert np.abs(D[f, :k, :k] - np.diag(A[f, :k])).max() <= 1e-13 * A[f, :k].max()
+        assert np.abs(Mw[f, :k].sum(axis=(1, 2)) - A[f, :k]).max() <= 1e-13 * A[f, :k].max()
+    assert np.abs(G).max() <= 1e-16 * A.max() and np.abs(S).max() <= 1e-16 * A.max()
+    assert np.allclose(n, [0.0, 0.0, 1.0], atol=1e-15)

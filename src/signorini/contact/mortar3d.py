@@ -290,7 +290,7 @@ def _face_quadrature(xs, nvs, xm, nvm, mm):
 def face_terms(X, patches: Patches3D):
     """Per slave face (nf of them) and per vertex a of it, the reference
     quantities of linearised kinematics (docs/theory.md §13.10), one clip per
-    face pair: ∫ Φ_a g and ∫ Φ_a r (3,) at X (from the points' gaps: exactly zero
+    face pair: ∫ Φ_a g and ∫ Φ_a r (3,) at X (from the points' gaps: zero to round-off
     where the two surfaces coincide), ∫ N_a, the weights D_ab = ∫ Φ_a N_b on the
     face's vertices (4, 4) and M_ab = ∫ Φ_a N_b on each candidate's (4, M, 4),
     and the face's normal (3,)."""
