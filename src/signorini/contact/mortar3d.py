@@ -337,6 +337,7 @@ class MortarNode3D:
         self.mf, self.mnv, self.mmask = master_faces, master_nv, master_mask
         self.linear = linear
         self._linear = None
+        self._last = None
         if linear:
             if terms is None:
                 raise ValueError("MortarNode3D: linearised kinematics needs the faces' terms "
@@ -359,7 +360,12 @@ class MortarNode3D:
 
     def _integrals(self, x):
         if self._linear is None:
-            return self._overlap_integrals(x)
+            # gap and closest ask for the same integrals of the same x (one clip of the
+            # node's faces per evaluation, not two, in the traced program)
+            last = self._last
+            if last is None or last[0] is not x:
+                self._last = last = (x, self._overlap_integrals(x))
+            return last[1]
         G0, S0, A0, Ga, c = self._linear
         d = x - self.X
         return G0 + jnp.sum(Ga * d), S0 + c @ d, A0
