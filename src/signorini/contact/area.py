@@ -23,14 +23,18 @@ def contact_nodes(edges: np.ndarray) -> np.ndarray:
 
 
 def equivalent_areas(X, edges: np.ndarray, nodes: np.ndarray | None = None, kinematics=None):
-    """A_S (n_contact,) for the nodes ``nodes`` of the edge set ``edges``.
+    """A_S (n_contact,) for the nodes ``nodes`` of the edge or face set ``edges``.
 
     Args:
-        X: (n_nodes, 2) reference coordinates (JAX or NumPy, may depend on phi).
-        edges: (n_edges, 2) boundary edges of the contact surface.
+        X: (n_nodes, 2) reference coordinates in 2-D and axisymmetry, (n_nodes, 3)
+            in 3-D (JAX or NumPy, may depend on phi).
+        edges: the boundary of the contact surface: (n_edges, 2) edges in 2-D and
+            axisymmetry, (n_faces, 4) quadrilaterals or (n_faces, 3) triangles in 3-D.
         nodes: (n_contact,) sorted contact nodes (default ``contact_nodes(edges)``).
         kinematics: :class:`~signorini.fem.kinematics.PlaneStrain` (default, per unit
-            thickness) or :class:`~signorini.fem.kinematics.Axisymmetric` (full 2 pi).
+            thickness), :class:`~signorini.fem.kinematics.Axisymmetric` (full 2 pi)
+            or a 3-D body's (:class:`signorini.fem.solid.Solid3D`: each node's share
+            of its faces' areas, :func:`signorini.fem.solid.face_areas`).
     """
     edges = np.asarray(edges)
     if nodes is None:
