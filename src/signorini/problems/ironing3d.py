@@ -47,11 +47,15 @@ from .values import checked_values
 DEFAULTS = {"E1": 100.0, "nu1": 0.3, "E2": 1000.0, "nu2": 0.3, "R": 1.0, "mu": 0.3, "d": 0.06,
             "s": 0.5}
 #: the block's length and height, the die's half-width (along x), height and start
-#: (those of the 2-D problem), the block's half-width and the die's half-length (along y)
+#: (those of the 2-D problem, but X0 moved by 0.03 so that the die's ends do not sit
+#: exactly over block nodes at t = 0: a master-end switch), the block's half-width and
+#: the die's half-length (along y)
 L, H, A, D, X0, B, BD = 4.0, 1.0, 0.5, 0.5, 1.03, 0.25, 0.3125
-#: bytes per (slave node x candidate face pair) of the finite-sliding pair's
-#: kernels at their peak and bytes of their compilation: fitted to the peak memory
-#: of `signorini ironing3d --no-fd` at two sizes (docs/benchmarks.md, Ironing in 3-D)
+#: bytes per (slave node x face pair x patch coordinate) of the finite-sliding pair's
+#: tangent program (second derivatives of the face clips, all slave nodes at once):
+#: the single buffers XLA asked for, 10.5 GB at 75,600 and 23.7 GB at 172,800 of them
+#: (139 and 137 kB); and bytes besides (compilation, the solver), so that the default's
+#: estimate (4.5 GB) covers its measured peaks, 3.2-4.5 GB (docs/benchmarks.md, Ironing in 3-D)
 PAIR_BYTES, PAIR_BASE = 1.4e5, 3.0 * 1024.0**3
 #: the part of the path over which the die is pressed in
 T_PRESS = 0.2
