@@ -182,3 +182,24 @@ def test_face_areas_are_consistent_nodal_loads():
     assert A.sum() == pytest.approx(total, rel=1e-14)
     chords = 2 * 2.4 * np.sin(np.diff(xs / 0.7 * (np.pi / 3)) / 2)  # the faces are flat strips
     assert A.sum() == pytest.approx(chords.sum() * 0.5, rel=1e-14)
+
+
+def test_an_open_node_at_rest_has_its_tangential_rows():
+    """An open node whose augmented tangential multiplier is zero (at rest: lam_T =
+    0, no slip) has the rows lam_T / eps_T of every open node, -A/eps_T on the
+    diagonal of its tangent: they determine its multipliers (the norm's zero
+    gradient at 0 once left these rows empty, singular for SuperLU and for the
+    iterative solver's multiplier block)."""
+    law = CoulombDisc()
+    cp = law.values(P)
+    plane = Plane(point=(0.0, 0.0, 0.0), normal_vector=(0.0, 0.0, -1.0))
+    geo = plane.geometry(P, 0.0)
+    e = jnp.array([1.0, 0.0, 0.0])
+    x = jnp.array([0.2, -0.1, -0.5])  # away from the plane: open
+    A = 0.7
+    for lam in ([0.0, 0.0, 0.0], [0.0, 0.3, -0.2]):
+        r = lambda v: law.residual(v[:3], v[3:], A, geo, plane, cp, (plane.closest(x, geo), e, 1.0))
+        K = np.asarray(jax.jacfwd(r)(jnp.concatenate([x, jnp.array(lam)])))
+        assert int(law.status(x, jnp.array(lam), A, geo, plane, cp, (plane.closest(x, geo), e, 1.0))) == 0
+        assert np.allclose(K[3:, 3:], -A / np.array([cp["eps_n"], cp["eps_t"], cp["eps_t"]]) * np.eye(3),
+                           rtol=1e-14, atol=0.0)

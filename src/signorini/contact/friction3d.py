@@ -102,8 +102,12 @@ class CoulombDisc(Coulomb):
         lhn, lht, _, _ = self.augmented(x, lam, geo, obstacle, cp, hist)
         l_n = (jnp.where(closed, lhn, 0.0) ** 2 - lam[0] ** 2) / (2.0 * cp["eps_n"])
         outside = jnp.where(stick, 0.0, _norm(lht) - rho)  # the distance from the disc
+        # open (rho = 0): the distance squared is lam^_T . lam^_T, whose curvature the
+        # norm's zero gradient at lam^_T = 0 would lose (an open node at rest: a zero
+        # tangential row, singular for SuperLU and the multipliers' Schur complement)
+        outside2 = jnp.where(closed, outside**2, lht @ lht)
         lt = lam[1:]
-        l_t = (lht @ lht - lt @ (m * lt) - outside**2 - lt @ ((1.0 - m) * lt)) / (2.0 * cp["eps_t"])
+        l_t = (lht @ lht - lt @ (m * lt) - outside2 - lt @ ((1.0 - m) * lt)) / (2.0 * cp["eps_t"])
         return A * (l_n + l_t)
 
     def _flags(self, hist):

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import InputError, SolverError
+from ..errors import InputError, SingularTangentError, SolverError
 from .base import LinearSolver
 from .condensation import condense
 from .factor import Factor
@@ -299,7 +299,12 @@ class AMGKrylov(LinearSolver):
             return matrix, None, lambda v_cycle: self._apply(v_cycle, None)
         inv = sp.diags(1.0 / np.where(diag != 0, diag, 1.0))
         C = K[n_u:, :n_u]
-        S_solve = spla.splu((K[n_u:, n_u:] - C @ inv @ K[:n_u, n_u:]).tocsc()).solve
+        try:
+            S_solve = spla.splu((K[n_u:, n_u:] - C @ inv @ K[:n_u, n_u:]).tocsc()).solve
+        except RuntimeError as e:  # SuperLU: "Factor is exactly singular"
+            raise SingularTangentError(
+                f"the preconditioner's multiplier block S = D - C diag(A)^-1 B is singular ({e}): "
+                "a multiplier row that neither its law nor the displacements determine") from None
         multipliers = lambda r_l, x_u: S_solve(r_l - C @ x_u)  # noqa: E731
         return matrix, None, lambda v_cycle: self._apply(v_cycle, multipliers)
 
