@@ -159,7 +159,12 @@ def ring_distances(x: np.ndarray, new: np.ndarray, p: np.ndarray, h: np.ndarray,
     the fewest bands ``width`` cell sizes ``h`` wide (``h`` of each band's nearest
     node) that hold their distances from the contact centre (:func:`contact_centre`
     of the current positions ``x`` and pressures ``p``). Returns the distance of
-    every node from the centre and the nearest distance of each ring.
+    every node from the centre and the nearest distance of each ring. The
+    increment checks pass the reference positions ``x``: nodes at equal distance
+    on the mesh are one ring whatever the deformation (measured on the current
+    positions, the lateral displacements of a half model of two spheres, which
+    differ along x and y, split such rings by a few percent of a cell, and the
+    advice then asked for thousands of increments to separate them).
 
     What more increments can fix. A growing contact zone (Hertz-like: the
     pressure falls from a centre outwards) closes its nodes in order of distance
@@ -242,6 +247,7 @@ class IncrementChecks:
         self.memo = {}  # surface -> the partner distances of the last configuration (shared)
         self.coarse = {}  # surface -> [(increment, t0, t, new nodes, rings)] over the threshold
         self.sizes = {}  # surface -> the local cell size at each contact node (friction)
+        self.reference = {}  # surface -> its nodes' reference positions (friction: the rings)
         X = None
         for i, s in enumerate(model.surfaces):
             if s.patches is not None and not model.linear_contact[i]:
@@ -255,6 +261,7 @@ class IncrementChecks:
             if s.contact.method.has_history:
                 X = np.asarray(model.reference(params)) if X is None else X
                 self.sizes[i] = side_lengths(X, s.edges, s.nodes)
+                self.reference[i] = X[s.nodes]
 
     def _snapshot(self, w, t):
         m = self.model
@@ -295,7 +302,7 @@ class IncrementChecks:
                 if i in self.sizes and t0 >= COARSE_PATH_FROM - 1e-12 and closed0.any():
                     new = closed1 & ~closed0
                     if new.any():
-                        r, starts = ring_distances(x1, new, p1, self.sizes[i])
+                        r, starts = ring_distances(self.reference[i], new, p1, self.sizes[i])
                         if len(starts) > MAX_NEW_CONTACT_RINGS:
                             spread = ring_spread(r, starts, closed0, closed1)
                             self.coarse.setdefault(i, []).append(
