@@ -376,3 +376,16 @@ def test_face_terms_are_the_dual_mortar_weights(tets):
         assert np.abs(Mw[f, :k].sum(axis=(1, 2)) - A[f, :k]).max() <= 1e-13 * A[f, :k].max()
     assert np.abs(G).max() <= 1e-16 * A.max() and np.abs(S).max() <= 1e-16 * A.max()
     assert np.allclose(n, [0.0, 0.0, 1.0], atol=1e-15)
+
+
+def test_finite_kinematics_tangent_by_batches_of_nodes(monkeypatch):
+    """A finite-kinematics 3-D pair whose tangent would not fit at once is evaluated
+    a batch of slave nodes at a time (Model._pair_batch, lax.map): here one node at
+    a time, the same uniform Cauchy stress as the patch test."""
+    from signorini.model.kernels import Model
+    monkeypatch.setattr(Model, "PAIR_BATCH_BYTES", 1.0)
+    pb = patch_problem(1, 2, kinematics="finite", material=NeoHooke())
+    assert Model(pb)._pair_batch(0) == 1
+    sol = sg.solve(pb, steps=1)
+    S = np.asarray(sol.stress()[0]).reshape(-1, 3, 3)
+    assert np.ptp(S, axis=0).max() <= 1e-10 * P

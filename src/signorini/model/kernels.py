@@ -220,11 +220,12 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         return Program(fn, name, self._program_key, static_argnums=static_argnums)
 
     def _program_key(self) -> str | None:
-        """This model's key with the chunking of its cells as it is when a program is
-        traced (:meth:`_over_cells`): a model chunked otherwise traces other code."""
+        """This model's key with the chunking of its cells (:meth:`_over_cells`) and
+        the batches of a pair's nodes (:meth:`_pair_batch`) as they are when a program
+        is traced: a model chunked otherwise traces other code."""
         if self.key is None:
             return None
-        return stable_digest((self.key, self.CELL_CHUNK, self.CHUNKED_FROM))
+        return stable_digest((self.key, self.CELL_CHUNK, self.CHUNKED_FROM, self.PAIR_BATCH_BYTES))
 
     # ----------------------------------------------------- layout delegation
     n_nodes = property(lambda self: self.layout.n_nodes)
@@ -424,10 +425,34 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
                     return out, out
                 return jax.jacfwd(r, has_aux=True)(jnp.concatenate([xs.ravel(), ls]))
 
-            Kc, rc = jax.vmap(node, (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
+            batch = self._pair_batch(i)
+            if batch is None:
+                Kc, rc = jax.vmap(node, (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
+            else:  # a finite-kinematics pair: its nodes a batch at a time (memory)
+                Kc, rc = jax.lax.map(lambda a, node=node: node(*a), (x, lam, A, h, Xs),
+                                     batch_size=batch)
             R = R.at[s.dofs.ravel()].add(rc.ravel())
             blocks.append(Kc)
         return R, blocks
+
+    #: bytes of a finite-kinematics 3-D pair's tangent per slave node, face pair and
+    #: patch coordinate (the forward-mode derivatives of its clips, measured on the
+    #: buffers XLA asks for: docs/benchmarks.md, ironing in 3-D), and the memory a
+    #: batch of its nodes may take
+    PAIR_TANGENT_BYTES, PAIR_BATCH_BYTES = 1.4e5, 1.0 * 1024.0**3
+
+    def _pair_batch(self, i: int) -> int | None:
+        """How many slave nodes of surface i's pair the tangent evaluates at once:
+        all (None) for linearised kinematics and 2-D pairs; for a 3-D pair with
+        finite kinematics as many as take PAIR_BATCH_BYTES (the vmap over all of
+        them asked for 10 GB on a 75-node surface with 4 candidates per face)."""
+        s = self.surfaces[i]
+        if s.patches is None or self.linear_contact[i] or self.dim != 3:
+            return None
+        nc, P = s.patches.nodes.shape
+        per_node = self.PAIR_TANGENT_BYTES * s.patches.master_mask[0].size * 3 * P
+        batch = max(1, int(self.PAIR_BATCH_BYTES // per_node))
+        return None if batch >= nc else batch
 
     def stiffness_pure(self, params):
         """Pure function: the element stiffness K_e (n_cells, 8, 8) of a linear body,
