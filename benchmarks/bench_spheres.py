@@ -36,6 +36,10 @@ CASES = {
                          "--n-fine", "12"],
     # the rigid sphere with friction, 10 increments, of about the two-body half model's size
     "rigid": ["hertz3d", "--set", f"mu={MU}", "--steps", "10", "--n-fine", "10", "--no-fd"],
+    # the same pair at about 100k unknowns: 107,244 (two bodies) and 112,752 (rigid)
+    "mindlin-0.5-100k": ["spheres", "--set", f"mu={MU}", "--set", f"Q={0.5 * MU * P}", "--no-fd",
+                         "--n-fine", "15"],
+    "rigid-100k": ["hertz3d", "--set", f"mu={MU}", "--steps", "10", "--n-fine", "21", "--no-fd"],
 }
 
 
