@@ -41,6 +41,7 @@ from ..fem.mesh import merge
 from ..fem.mesh3d import Mesh3D, box
 from ..linsolve import check_size
 from ..materials import Bodies, NeoHooke
+from ..model.kernels import Model
 from ..model.problem import Problem
 from .values import checked_values
 
@@ -56,7 +57,7 @@ L, H, A, D, X0, B, BD = 4.0, 1.0, 0.5, 0.5, 1.03, 0.25, 0.3125
 #: the single buffers XLA asked for, 10.5 GB at 75,600 and 23.7 GB at 172,800 of them
 #: (139 and 137 kB); and bytes besides (compilation, the solver), so that the default's
 #: estimate (4.5 GB) covers its measured peaks, 3.2-4.5 GB (docs/benchmarks.md, Ironing in 3-D)
-PAIR_BYTES, PAIR_BASE = 1.4e5, 3.0 * 1024.0**3
+PAIR_BYTES, PAIR_BASE = Model.PAIR_TANGENT_BYTES, 3.0 * 1024.0**3
 #: the part of the path over which the die is pressed in
 T_PRESS = 0.2
 #: the block's cells along its top; the others follow (:func:`cell_counts`)
