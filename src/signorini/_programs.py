@@ -352,6 +352,7 @@ class Program:
             from jax.experimental import serialize_executable  # noqa: PLC0415  (lazy: on a hit only)
 
             payload, in_tree, out_tree = pickle.loads(body)
+            _lapack_ready()
             c = serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
         except Exception as e:  # noqa: BLE001  (any bad entry is rebuilt, never used)
             STATS["rebuilt"] += 1
@@ -392,6 +393,21 @@ class Program:
                       "directory (or to an empty value to switch the caches off)")
         except Exception as e:  # noqa: BLE001  (a cache that cannot be written is only slower)
             log.debug("could not keep program %s: %s", self.name, e)
+
+
+@functools.cache
+def _lapack_ready() -> None:
+    """Register the CPU's LAPACK kernels before a kept program is loaded. JAX does
+    so when it first lowers a linear-algebra operation; a program loaded from
+    disk is not lowered, and one that calls LAPACK (a determinant, an inverse, a
+    solve) then jumps to an unregistered kernel and the process dies
+    (segmentation fault) if it is the first such program of the process. JAX's
+    own loader of exported programs does the same (``_ensure_backends_initialized``)."""
+    try:
+        from jax._src.lax.linalg import initialize_lapack  # noqa: PLC0415
+        initialize_lapack()
+    except Exception:  # noqa: BLE001  (another JAX: lower one such operation instead)
+        jax.block_until_ready(jax.numpy.linalg.det(jax.numpy.eye(2)))
 
 
 def max_bytes() -> int:

@@ -488,3 +488,28 @@ def test_jax_compilation_cache_entries_damaged_or_not_private(tmp_path):
     assert all(os.stat(e).st_mode & 0o077 == 0 for e in entries)
     sound = run()
     assert sound["hits"] >= 1 and sound["warnings"] == [] and sound["value"] == first["value"]
+
+
+LAPACK_SCRIPT = textwrap.dedent("""
+    import sys
+    import numpy as np
+    from signorini import _programs
+    from signorini._jax import jnp
+    prog = _programs.Program(lambda a: jnp.linalg.det(a) + jnp.linalg.inv(a).sum(), "lapack-first",
+                             "test-lapack-first")
+    value = prog(np.array([[2.0, 1.0], [1.0, 3.0]]))
+    sys.stdout.write(f"{float(value)!r} {_programs.STATS['loaded']}")
+""")
+
+
+def test_a_kept_program_calling_lapack_loads_first_in_a_process(tmp_path):
+    """A program that calls LAPACK (a determinant, an inverse), loaded from the
+    disk as the first such program of a fresh process, runs (without the
+    kernels' registration that JAX does on lowering, it crashed the process)."""
+    env = {**os.environ, "SIGNORINI_CACHE_DIR": str(tmp_path)}
+    env.pop("SIGNORINI_PROGRAM_CACHE", None)
+    runs = [subprocess.run([sys.executable, "-c", LAPACK_SCRIPT], env=env, capture_output=True,
+                           text=True, timeout=300) for _ in range(2)]
+    assert [r.returncode for r in runs] == [0, 0], runs[-1].stderr[-2000:]
+    (v0, loaded0), (v1, loaded1) = (r.stdout.split() for r in runs)
+    assert (loaded0, loaded1) == ("0", "1") and float(v0) == float(v1) == pytest.approx(5.6, rel=1e-14)
