@@ -28,16 +28,15 @@ from __future__ import annotations
 
 import numpy as np
 
-
 from ..contact import Coulomb
 from ..contact.mortar import pair
-from .values import checked_values
 from ..errors import InputError
 from ..fem.loads import Fixed, Ramp
 from ..fem.mesh import Mesh, merge, rectangle
 from ..linsolve import check_size
 from ..materials import Bodies, NeoHooke
 from ..model.problem import Problem
+from .values import checked_values
 
 DEFAULTS = {"E1": 100.0, "nu1": 0.3, "E2": 1000.0, "nu2": 0.3, "R": 1.0, "mu": 0.3, "d": 0.06,
             "s": 1.5}
@@ -59,14 +58,21 @@ def cell_counts(cells: int = CELLS, refine: int = 0) -> tuple[int, int, int, int
     ``cells`` x 2^refine cells, its height an eighth of that, the die's arc a sixth
     (its cells 1.5 times the block's: the block's top is the finer surface) and
     its height a quarter of the arc's (at least 2)."""
+    n = checked_cells("ironing problem", cells, refine)
+    arc = max(n // 6, 4)
+    return n, max(n // 8, 2), arc, max(arc // 4, 2)
+
+
+def checked_cells(problem: str, cells, refine) -> int:
+    """The block's cells along its top, ``cells`` x 2^refine, after the options'
+    checks (both ironing problems: :func:`cell_counts`,
+    :func:`signorini.problems.ironing3d.cell_counts`)."""
     if isinstance(cells, bool) or not isinstance(cells, (int, np.integer)) or cells < 24:
-        raise InputError(f"ironing problem: cells (the block's cells along its top) must be an "
+        raise InputError(f"{problem}: cells (the block's cells along its top) must be an "
                          f"integer >= 24, got {cells!r}")
     if isinstance(refine, bool) or not isinstance(refine, (int, np.integer)) or refine < 0:
         raise InputError(f"refine must be an integer >= 0, got {refine!r}")
-    n = int(cells) * 2**int(refine)
-    arc = max(n // 6, 4)
-    return n, max(n // 8, 2), arc, max(arc // 4, 2)
+    return int(cells) * 2**int(refine)
 
 
 #: the die's depth over the path, relative to d, and its travel along the block, relative to s
@@ -75,33 +81,49 @@ press, slide = Ramp(0.0, T_PRESS), Ramp(T_PRESS, 1.0)
 
 def check_params(params: dict | None) -> dict:
     """The run's values: DEFAULTS updated by ``params`` (eps, eps_t allowed), checked."""
-    values = checked_values("ironing problem", DEFAULTS, params, extra=("eps", "eps_t"),
+    return checked_params("ironing problem", DEFAULTS, params, X0)
+
+
+def checked_params(problem: str, defaults: dict, params: dict | None, x0: float, *,
+                   poisson: bool = False) -> dict:
+    """``defaults`` updated by ``params`` (eps, eps_t allowed) as floats, checked
+    for both ironing problems (die at ``x0``): signs, Poisson's ratios in (-1,
+    0.5) if ``poisson``, the die's radius, depth and slide."""
+    values = checked_values(problem, defaults, params, extra=("eps", "eps_t"),
                             positive=("E1", "E2", "R", "d"), nonnegative=("mu", "s"))
     values = {k: float(v) for k, v in values.items()}
+    for k in ("nu1", "nu2") if poisson else ():
+        if not -1.0 < values[k] < 0.5:
+            raise InputError(f"{problem}: Poisson's ratio {k} = {values[k]} must lie in (-1, 0.5)")
     if not values["R"] > A * 1.05:
-        raise InputError(f"ironing problem: the die's radius R = {values['R']} must exceed its "
+        raise InputError(f"{problem}: the die's radius R = {values['R']} must exceed its "
                          f"half-width {A} (by 5 %): the arc spans the die's bottom")
     if not values["d"] < 0.3 * H:
-        raise InputError(f"ironing problem: the depth d = {values['d']} must stay below 0.3 H = "
+        raise InputError(f"{problem}: the depth d = {values['d']} must stay below 0.3 H = "
                          f"{0.3 * H} (the block's height is {H})")
-    if X0 + values["s"] + A > L - 0.25:
-        raise InputError(f"ironing problem: the slide s = {values['s']} takes the die off the block "
-                         f"(its end reaches x = {X0 + values['s'] + A}, the block ends at {L}); "
-                         f"keep s <= {L - 0.25 - X0 - A}")
+    if x0 + values["s"] + A > L - 0.25:
+        raise InputError(f"{problem}: the slide s = {values['s']} takes the die off the block "
+                         f"(its end reaches x = {x0 + values['s'] + A}, the block ends at {L}); "
+                         f"keep s <= {L - 0.25 - x0 - A}")
     return values
 
 
 def _die(R: float, nx: int, ny: int):
     """(mesh, V = dX/dR) of the die: columns over [X0 - A, X0 + A], relative heights."""
     m = rectangle(np.linspace(X0 - A, X0 + A, nx + 1), np.linspace(0.0, 1.0, ny + 1))
-    x, e = m.nodes[:, 0], m.nodes[:, 1]
-    r = np.sqrt(R**2 - (x - X0) ** 2)
-    y_arc = H + R - r
-    dy_arc = 1.0 - R / r
+    y, dy = die_heights(m.nodes[:, 0], m.nodes[:, 1], R, X0)
+    V = np.column_stack([np.zeros_like(y), dy])
+    return Mesh(np.column_stack([m.nodes[:, 0], y]), m.cells, m.node_sets, m.edge_sets), V
+
+
+def die_heights(x, e, R: float, x0: float):
+    """(height, d height/dR) of the die's nodes at column ``x`` and relative height
+    ``e`` (0 on the arc of radius R about x = ``x0`` touching the block's top, 1 on
+    the die's top H + D): the die of both ironing problems."""
+    r = np.sqrt(R**2 - (x - x0) ** 2)
+    arc = H + R - r
     top = H + D
-    y = y_arc + e * (top - y_arc)
-    V = np.column_stack([np.zeros_like(x), (1.0 - e) * dy_arc])
-    return Mesh(np.column_stack([x, y]), m.cells, m.node_sets, m.edge_sets), V
+    return arc + e * (top - arc), (1.0 - e) * (1.0 - R / r)
 
 
 def check_mesh_size(refine: int = 0, cells: int = CELLS, *, force: bool = False, solver="auto") -> None:
@@ -138,9 +160,19 @@ def ironing_problem(params: dict | None = None, *, refine: int = 0, cells: int =
     nbx, nby, ndx, ndy = cell_counts(cells, refine)
     block = rectangle(np.linspace(0.0, L, nbx + 1), np.linspace(0.0, H, nby + 1))
     die, V = _die(values["R"], ndx, ndy)
-    mesh = merge({"block": block, "die": die})
-    shape = {"R": np.concatenate([np.zeros_like(block.nodes), V])}
-    h = L / nbx
+    fixed = (Fixed("block.bottom", 0), Fixed("block.bottom", 1),
+             Fixed("die.top", 0, "s", ramp=slide), Fixed("die.top", 1, lambda p: -p["d"], ramp=press))
+    return finite_problem(merge({"block": block, "die": die}), block.n_nodes, V, values, params,
+                          L / nbx, ("block.top", "die.bottom"), fixed, DEFAULTS["s"])
+
+
+def finite_problem(mesh, n_block: int, V, values: dict, params: dict | None, h: float,
+                   surfaces: tuple[str, str], fixed, nominal_s: float) -> Problem:
+    """The problem of either ironing on the merged ``mesh`` (the block's ``n_block``
+    nodes first, then the die's, whose design velocity to R is ``V``): neo-Hookean
+    bodies, eps and eps_t E1/h unless in ``params`` (``h`` the block's cells along
+    its top), a Coulomb pair with finite kinematics from the slave to the master
+    set of ``surfaces`` whose candidates cover the slide."""
     for key in ("eps", "eps_t"):
         if key not in (params or {}):
             values[key] = DEFAULTS["E1"] / h
@@ -148,25 +180,31 @@ def ironing_problem(params: dict | None = None, *, refine: int = 0, cells: int =
     # the candidates cover the nominal slide and the run's (extra candidates
     # that never overlap contribute exactly nothing: the pairing does not
     # change the solution), with two block cells to spare
-    reach = max(values["s"], DEFAULTS["s"]) + 2 * h
-    contact = pair("block.top", "die.bottom", method, "finite", slide=reach)
-    fixed = (Fixed("block.bottom", 0), Fixed("block.bottom", 1),
-             Fixed("die.top", 0, "s", ramp=slide), Fixed("die.top", 1, lambda p: -p["d"], ramp=press))
+    reach = max(values["s"], nominal_s) + 2 * h
+    contact = pair(*surfaces, method, "finite", slide=reach)
     return Problem(mesh=mesh,
                    material=Bodies({"block": NeoHooke("E1", "nu1"), "die": NeoHooke("E2", "nu2")}),
                    params=values, fixed=fixed, contact=(contact,),
-                   shape=shape, shape_nominal={"R": values["R"]})
+                   shape={"R": np.concatenate([np.zeros((n_block, V.shape[1])), V])},
+                   shape_nominal={"R": values["R"]})
 
 
 def die_force(solution, i: int = -1, names=()) -> dict:
     """The die force at increment i: F_N (pressing), F_T (along the slide) and,
     for each name, their DDM sensitivities dF_N_d<name>, dF_T_d<name>."""
-    top = solution.model.problem.mesh.node_sets["die.top"]
+    return support_force(solution, "die.top", 1, i, names)
+
+
+def support_force(solution, nodes: str, normal: int, i: int = -1, names=()) -> dict:
+    """The force of the supports of the node set ``nodes`` at increment i, both
+    ironing problems' die force: F_N = minus its component ``normal`` (pressing),
+    F_T = its x component and, for each name, dF_N_d<name>, dF_T_d<name>."""
+    top = solution.model.problem.mesh.node_sets[nodes]
     r = solution.reactions(i)[top].sum(axis=0)
-    out = {"F_N": -float(r[1]), "F_T": float(r[0])}
+    out = {"F_N": -float(r[normal]), "F_T": float(r[0])}
     sens = solution.reaction_sensitivities(i) if names else {}
     for n in names:
         dr = sens[n][top].sum(axis=0)
-        out[f"dF_N_d{n}"] = -float(dr[1])
+        out[f"dF_N_d{n}"] = -float(dr[normal])
         out[f"dF_T_d{n}"] = float(dr[0])
     return out
