@@ -25,3 +25,66 @@ def pressed_block(friction: bool):
                            "eps": 400.0},
                    fixed=(Fixed("bottom", 1, "d"), Fixed("bottom", 0, "s")),
                    contact=(Contact(Circle(radius="R", centre=(1.0, lambda p: p["R"])), "top", law),))
+
+
+# ------------------------------------------------------------------ ironing, 2-D and 3-D
+def read_csv(path) -> dict:
+    """The columns of a command's CSV file: floats, but the status column's text."""
+    import csv
+
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    cols = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+    return {k: (v if k == "status" else v.astype(float)) for k, v in cols.items()}
+
+
+def die_forces(sol, die_force) -> np.ndarray:
+    """(F_N, F_T) of an ironing path at every increment, from the problem module's
+    ``die_force``."""
+    f = [die_force(sol, i) for i in range(len(sol.increments))]
+    return np.array([[r["F_N"], r["F_T"]] for r in f])
+
+
+def check_ironing_run(out, name: str, steps: int, sol, die_force, names, fd_names) -> tuple:
+    """What both ironing commands write after a run of the API's path ``sol``: every
+    file (one VTU per body and increment), the DDM against the command's own
+    central differences for ``fd_names`` (<= 1e-6), the partner changes, per-body
+    entries, and force.csv's die force and DDM to ``names`` equal to the API's.
+    Returns (summary.json, force.csv's columns)."""
+    import json
+
+    last = f"{steps:04d}"
+    for f in ("force.csv", "contact.csv", "summary.json", "force.png", "sensitivity.png",
+              f"{name}.pvd", f"{name}_block_{last}.vtu", f"{name}_die_{last}.vtu"):
+        assert (out / f).is_file(), f
+    s = json.loads((out / "summary.json").read_text())
+    assert set(s["ddm_vs_fd_rel_diff"]) == set(fd_names)
+    assert max(s["ddm_vs_fd_rel_diff"].values()) <= 1e-6, s["ddm_vs_fd_rel_diff"]
+    assert s["partner_changes"] and s["partner_change_count"] > 0
+    assert set(s["bodies"]) == {"block", "die"}
+    F = read_csv(out / "force.csv")
+    api = [die_force(sol, i, names) for i in range(len(sol.increments))]
+    for k in ["F_N", "F_T"] + [f"dF_{c}_d{n}" for n in names for c in "NT"]:
+        ref = np.array([r[k] for r in api])
+        assert np.abs(F[k] - ref).max() <= 1e-9 * np.abs(ref).max(), k  # 1e-12 when written
+    pvd = (out / f"{name}.pvd").read_text()
+    assert pvd.count('part="1"') == steps and f"{name}_die_0001.vtu" in pvd
+    return s, F
+
+
+def check_fd_of_two_runs(tmp_path, argv, name: str, value: float, h: float) -> None:
+    """The central difference of F_T from two command runs (``argv``, ``--out`` and
+    ``--no-fd`` added) with ``name`` = value +- h equals the DDM of the run at
+    ``value``, at every increment (to 1e-6 of its largest)."""
+    from signorini.app.cli import main
+
+    out = tmp_path / "nominal"
+    assert main(argv + ["--out", str(out), "--no-fd"]) == 0
+    ddm = read_csv(out / "force.csv")[f"dF_T_d{name}"]
+    runs = []
+    for sign in (1, -1):
+        o = tmp_path / f"{name}{sign}"
+        assert main(argv + ["--out", str(o), "--no-fd", "--set", f"{name}={value + sign * h!r}"]) == 0
+        runs.append(read_csv(o / "force.csv")["F_T"])
+    fd = (runs[0] - runs[1]) / (2 * h)
+    assert np.abs(fd - ddm).max() <= 1e-6 * np.abs(ddm).max()

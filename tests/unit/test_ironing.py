@@ -4,17 +4,16 @@ the die force along a path in which every closed slave node changes partners),
 reported per increment; a pair whose candidates do not cover the slide says so;
 the end of a master surface over a slave node is a switch point."""
 
-import csv
 import dataclasses
-import json
 
 import numpy as np
 import pytest
+from helpers import check_fd_of_two_runs, check_ironing_run, die_forces
 
 import signorini as sg
+from signorini.algorithms.newton import NewtonOptions
 from signorini.app.cli import main
 from signorini.app.commands.ironing import SENSITIVITIES
-from signorini.algorithms.newton import NewtonOptions
 from signorini.contact import mortar
 from signorini.design.finite_differences import finite_difference
 from signorini.errors import InputError, UnknownParameterError
@@ -39,8 +38,7 @@ def ironed():
 
 
 def _forces(sol):
-    f = [die_force(sol, i) for i in range(len(sol.increments))]
-    return np.array([[r["F_N"], r["F_T"]] for r in f])
+    return die_forces(sol, die_force)
 
 
 def test_die_force_and_partner_changes(ironed):
@@ -126,13 +124,6 @@ def test_bad_ironing_input():
         mortar.pair("a", "b", slide=-1.0)
 
 
-def _read(out, name):
-    with open(out / name) as f:
-        rows = list(csv.DictReader(f))
-    cols = {k: np.array([r[k] for r in rows]) for k in rows[0]}
-    return {k: (v if k == "status" else v.astype(float)) for k, v in cols.items()}
-
-
 SMALL = ["--cells", "24", "--steps", "12", "--set", "s=0.5", "-q"]
 
 
@@ -145,43 +136,17 @@ def test_ironing_cli(tmp_path, ironed):
     args = ["--cells", str(CELLS), "--steps", str(STEPS), "--set", f"s={SLIDE['s']}",
             "--rtol", f"{TIGHT.rtol:g}", "-q"]
     assert main(["ironing", "--out", str(out)] + args) == 0
-    last = f"{STEPS:04d}"
-    for name in ("force.csv", "contact.csv", "summary.json", "force.png", "sensitivity.png",
-                 "ironing.pvd", f"ironing_block_{last}.vtu", f"ironing_die_{last}.vtu"):
-        assert (out / name).is_file(), name
-    s = json.loads((out / "summary.json").read_text())
-    assert set(s["ddm_vs_fd_rel_diff"]) == {"mu", "E1", "E2", "R", "d", "s"}
-    assert max(s["ddm_vs_fd_rel_diff"].values()) <= 1e-6, s["ddm_vs_fd_rel_diff"]
-    assert s["partner_changes"] and s["partner_change_count"] > 0
-    assert set(s["bodies"]) == {"block", "die"}
-    F = _read(out, "force.csv")
     # the command solves the API's problem: the same die force and DDM along the path
     _, sol = ironed
-    api = [die_force(sol, i, SENSITIVITIES) for i in range(len(sol.increments))]
-    for k in ["F_N", "F_T"] + [f"dF_{c}_d{n}" for n in SENSITIVITIES for c in "NT"]:
-        ref = np.array([r[k] for r in api])
-        assert np.abs(F[k] - ref).max() <= 1e-9 * np.abs(ref).max(), k  # 1e-12 when written
+    s, F = check_ironing_run(out, "ironing", STEPS, sol, die_force, SENSITIVITIES, SENSITIVITIES)
     # the die's support force is the die force; the block's balances it
     assert s["bodies"]["die"]["support_force"] == pytest.approx([F["F_T"][-1], -F["F_N"][-1]])
     assert np.allclose(s["bodies"]["block"]["support_force"], [-F["F_T"][-1], F["F_N"][-1]],
                        rtol=1e-8, atol=1e-10 * F["F_N"][-1])
-    pvd = (out / "ironing.pvd").read_text()
-    assert pvd.count('part="1"') == STEPS and "ironing_die_0001.vtu" in pvd
 
 
 @pytest.mark.slow  # 3 command runs; test_ironing_cli checks the command's own FD, test_ddm_equals_fd_... the API's
 def test_ironing_cli_fd_of_two_runs(tmp_path):
     """The central difference of F_T from two command runs with R +- h (the die
     re-meshed on its arc) equals the DDM printed by the run at R."""
-    small = SMALL
-    out = tmp_path / "i"
-    assert main(["ironing", "--out", str(out), "--no-fd"] + small) == 0
-    F = _read(out, "force.csv")
-    h = 1e-5
-    runs = []
-    for sign in (1, -1):
-        o = tmp_path / f"R{sign}"
-        assert main(["ironing", "--out", str(o), "--no-fd", "--set", f"R={1.0 + sign * h}"] + small) == 0
-        runs.append(_read(o, "force.csv"))
-    fd = (runs[0]["F_T"] - runs[1]["F_T"]) / (2 * h)
-    assert np.abs(fd - F["dF_T_dR"]).max() <= 1e-6 * np.abs(F["dF_T_dR"]).max()
+    check_fd_of_two_runs(tmp_path, ["ironing"] + SMALL, "R", 1.0, 1e-5)

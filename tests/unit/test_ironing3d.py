@@ -11,11 +11,9 @@ kept in the program cache) and costs about 2 s per Newton iteration: the tests
 that solve are marked slow; the fast ones check the problem's construction, its
 design velocity, its size guard and its errors without solving."""
 
-import csv
-import json
-
 import numpy as np
 import pytest
+from helpers import check_fd_of_two_runs, check_ironing_run, die_forces
 
 import signorini as sg
 from signorini.algorithms.newton import NewtonOptions
@@ -133,8 +131,7 @@ def ironed():
 
 
 def _forces(sol):
-    f = [die_force(sol, i) for i in range(len(sol.increments))]
-    return np.array([[r["F_N"], r["F_T"]] for r in f])
+    return die_forces(sol, die_force)
 
 
 @pytest.mark.slow  # a 3-D finite-sliding path: compilation ~3 min cold, the path ~90 s
@@ -177,13 +174,6 @@ def test_ddm_equals_fd_along_the_path(ironed, name):
     assert np.all(err <= 1e-6), (name, err)
 
 
-def _read(out, name):
-    with open(out / name) as f:
-        rows = list(csv.DictReader(f))
-    cols = {k: np.array([r[k] for r in rows]) for k in rows[0]}
-    return {k: (v if k == "status" else v.astype(float)) for k, v in cols.items()}
-
-
 @pytest.mark.slow  # the command's default run with its FD check (~6 min warm)
 def test_ironing3d_cli(tmp_path, ironed):
     """The default command run: every file (one VTU per body and increment), the
@@ -191,42 +181,16 @@ def test_ironing3d_cli(tmp_path, ironed):
     central differences, the partner changes and per-body entries in summary.json."""
     out = tmp_path / "i"
     assert main(["ironing3d", "--out", str(out), "--rtol", f"{TIGHT.rtol:g}", "-q"]) == 0
-    last = f"{STEPS:04d}"
-    for name in ("force.csv", "contact.csv", "summary.json", "force.png", "sensitivity.png",
-                 "ironing3d.pvd", f"ironing3d_block_{last}.vtu", f"ironing3d_die_{last}.vtu"):
-        assert (out / name).is_file(), name
-    s = json.loads((out / "summary.json").read_text())
-    assert set(s["ddm_vs_fd_rel_diff"]) == set(FD_NAMES)
-    assert max(s["ddm_vs_fd_rel_diff"].values()) <= 1e-6, s["ddm_vs_fd_rel_diff"]
-    assert s["partner_changes"] and s["partner_change_count"] > 0
-    assert set(s["bodies"]) == {"block", "die"}
-    F = _read(out, "force.csv")
     _, sol = ironed
-    api = [die_force(sol, i, SENSITIVITIES) for i in range(len(sol.increments))]
-    for k in ["F_N", "F_T"] + [f"dF_{c}_d{n}" for n in SENSITIVITIES for c in "NT"]:
-        ref = np.array([r[k] for r in api])
-        assert np.abs(F[k] - ref).max() <= 1e-9 * np.abs(ref).max(), k
+    s, F = check_ironing_run(out, "ironing3d", STEPS, sol, die_force, SENSITIVITIES, FD_NAMES)
     # the die's supports' force along x and z is the die force (along y the plane of
     # symmetry adds the other half's push: not part of it)
     die = s["bodies"]["die"]["support_force"]
     assert [die[0], die[2]] == pytest.approx([F["F_T"][-1], -F["F_N"][-1]], rel=1e-10)  # 12 digits
-    pvd = (out / "ironing3d.pvd").read_text()
-    assert pvd.count('part="1"') == STEPS and "ironing3d_die_0001.vtu" in pvd
 
 
 @pytest.mark.slow  # 3 command runs (~100 s each once compiled)
 def test_ironing3d_cli_fd_of_two_runs(tmp_path):
     """The central difference of F_T from two command runs with mu +- h equals the
     DDM printed by the run at mu, at every increment."""
-    small = ["--no-fd", "-q"]
-    out = tmp_path / "i"
-    assert main(["ironing3d", "--out", str(out)] + small) == 0
-    F = _read(out, "force.csv")
-    h = 1e-5 * 0.3
-    runs = []
-    for sign in (1, -1):
-        o = tmp_path / f"mu{sign}"
-        assert main(["ironing3d", "--out", str(o), "--set", f"mu={0.3 + sign * h!r}"] + small) == 0
-        runs.append(_read(o, "force.csv"))
-    fd = (runs[0]["F_T"] - runs[1]["F_T"]) / (2 * h)
-    assert np.abs(fd - F["dF_T_dmu"]).max() <= 1e-6 * np.abs(F["dF_T_dmu"]).max()
+    check_fd_of_two_runs(tmp_path, ["ironing3d", "-q"], "mu", 0.3, 1e-5 * 0.3)
