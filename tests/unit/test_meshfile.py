@@ -184,12 +184,6 @@ def test_read_gmsh_3d_errors(tmp_path):
     with pytest.raises(sg.InputError, match="face set 'left'.*not on the boundary"):
         read_mesh(tmp_path / "bad.msh")
     pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
-    meshio.Mesh(np.vstack([pts, pts + 2, [[4, 4, 4.0]] * 3]),
-                [("tetra", np.array([[0, 1, 2, 3]])),
-                 ("hexahedron", np.array([[5, 6, 7, 8, 9, 10, 11, 12]]))]
-                ).write(tmp_path / "mixed.msh", file_format="gmsh22", binary=False)
-    with pytest.raises(sg.InputError, match="mixes hexahedron and tetra"):
-        read_mesh(tmp_path / "mixed.msh")
     meshio.Mesh(pts, [("tetra", np.array([[0, 1, 2, 3]])), ("wedge", np.array([[0, 1, 2, 3, 4, 1]]))]
                 ).write(tmp_path / "wedge.msh", file_format="gmsh22", binary=False)
     with pytest.raises(sg.InputError, match=r"unsupported cell types \['wedge'\]"):
@@ -346,3 +340,55 @@ def test_one_public_reader_for_2d_and_3d_files(tmp_path, tets):
     assert sorted(solid.face_sets) == ["left", "top"] and sorted(flat.edge_sets) == ["bottom", "top"]
     with pytest.raises(sg.InputError, match="dim must be 2, 3 or None"):
         sg.read_mesh(tmp_path / "flat.msh", dim=1)
+
+
+def _mixed_file(path, shared=False, mixed_set=False):
+    """A hexahedral block and a tetrahedral one beside it (x in [1.5, 2.5]; with
+    ``shared`` touching it at x = 1, sharing its nodes) in one gmsh file, their
+    contact faces named "hex_right" and "tet_left" ("both" when ``mixed_set``)."""
+    from signorini.fem.mesh3d import box, tetrahedra
+
+    h = box(np.linspace(0, 1, 3), np.linspace(0, 1, 3), np.linspace(0, 1, 2))
+    t = tetrahedra(box(np.linspace(1 if shared else 1.5, 2.5, 3), np.linspace(0, 1, 3),
+                       np.linspace(0, 1, 2)))
+    off = len(h.nodes)
+    tets = t.cells + off
+    if shared:  # the tetrahedra's nodes at x = 1 are the hexahedra's
+        own = {tuple(x.round(9)): i for i, x in enumerate(h.nodes)}
+        alias = np.array([own.get(tuple(x.round(9)), off + i) for i, x in enumerate(t.nodes)])
+        tets = alias[t.cells]
+    quads, tris = h.face_sets["x1"], t.face_sets["x0"] + off
+    tag_q, tag_t = 2, 2 if mixed_set else 3
+    meshio.Mesh(np.vstack([h.nodes, t.nodes]),
+                [("hexahedron", h.cells), ("tetra", tets), ("quad", quads), ("triangle", tris)],
+                cell_data={"gmsh:physical": [np.full(len(h.cells), 5), np.full(len(tets), 6),
+                                             np.full(len(quads), tag_q), np.full(len(tris), tag_t)],
+                           "gmsh:geometrical": [np.full(len(h.cells), 5), np.full(len(tets), 6),
+                                                np.full(len(quads), 2), np.full(len(tris), 3)]},
+                field_data={"hex_right": np.array([2, 2]), "tet_left": np.array([3, 2]),
+                            "hexes": np.array([5, 3]), "tets": np.array([6, 3])}
+                ).write(path, file_format="gmsh22", binary=False)
+    return h, t
+
+
+def test_read_gmsh_3d_mixed(tmp_path):
+    """A file of hexahedra and tetrahedra in bodies of their own: a mixed mesh
+    (hexahedra first, each kind's cells and face sets as in files of one kind)."""
+    h, t = _mixed_file(tmp_path / "mixed.msh")
+    m = read_mesh(tmp_path / "mixed.msh")
+    assert m.mixed and m.cells.shape == (h.n_cells + t.n_cells, 8)
+    (hexa, ih), (tet, it) = m.groups()
+    assert (hexa.name, len(ih), tet.name, len(it)) == ("hexahedron", h.n_cells, "tetra", t.n_cells)
+    assert np.array_equal(m.cells[it, 4:], np.repeat(m.cells[it, :1], 4, axis=1))
+    assert m.face_set("hex_right").shape == (len(h.face_sets["x1"]), 4)
+    assert m.face_set("tet_left").shape == (len(t.face_sets["x0"]), 3)
+    assert len(m.node_set("hexes")) == h.n_nodes and len(m.node_set("tets")) == t.n_nodes
+
+
+def test_read_gmsh_3d_mixed_errors(tmp_path):
+    _mixed_file(tmp_path / "joined.msh", shared=True)
+    with pytest.raises(sg.InputError, match="joins hexahedra and tetrahedra.*pyramids"):
+        read_mesh(tmp_path / "joined.msh")
+    _mixed_file(tmp_path / "set.msh", mixed_set=True)
+    with pytest.raises(sg.InputError, match="'hex_right' has triangles and quadrilaterals"):
+        read_mesh(tmp_path / "set.msh")

@@ -25,11 +25,14 @@ P, Q = 1.0, 0.2
 
 
 def blocks(n_low, n_up, tets=False):
-    """Two unit-square blocks meeting on z = 0.5, n_low and n_up cells across."""
+    """Two unit-square blocks meeting on z = 0.5, n_low and n_up cells across;
+    ``tets``: True (both blocks tetrahedra), "low" or "up" (that one: a mixed mesh)."""
     low = box(np.linspace(0, 1, n_low + 1), np.linspace(0, 1, n_low + 1), np.linspace(0, 0.5, 3))
     up = box(np.linspace(0, 1, n_up + 1), np.linspace(0, 1, n_up + 1), np.linspace(0.5, 1.0, 3))
-    if tets:
-        low, up = tetrahedra(low), tetrahedra(up)
+    if tets in (True, "low"):
+        low = tetrahedra(low)
+    if tets in (True, "up"):
+        up = tetrahedra(up)
     return merge({"low": low, "up": up})
 
 
@@ -95,6 +98,21 @@ def test_patch_test_hexahedra_with_friction(ratio):
 def test_patch_test_tetrahedra(friction):
     """Triangles on triangles (tetrahedral meshes, 2:3): the same uniform state."""
     check_uniform(sg.solve(patch_problem(2, 3, friction=friction, tets=True), steps=2 if friction else 1),
+                  friction)
+
+
+@pytest.mark.parametrize("tets, friction", [
+    ("up", False), ("up", True), ("low", False),
+    pytest.param("low", True, marks=pytest.mark.slow)],  # in CI: friction with one slave kind
+    ids=["tetrahedra on hexahedra", "tetrahedra on hexahedra, friction", "hexahedra on tetrahedra",
+         "hexahedra on tetrahedra, friction"])
+def test_patch_test_mixed_mesh(tets, friction):
+    """A tetrahedral block on a hexahedral one (a mixed mesh, 2:3, triangles
+    against quadrilaterals, either slave): the same uniform state in every cell
+    of both kinds."""
+    mesh = blocks(2, 3, tets)
+    assert mesh.mixed and [c.name for c, _ in mesh.groups()] == ["hexahedron", "tetra"]
+    check_uniform(sg.solve(patch_problem(2, 3, friction=friction, tets=tets), steps=2 if friction else 1),
                   friction)
 
 
@@ -188,23 +206,26 @@ def test_crown_ddm_equals_fd(crown):
             assert np.abs(c[f"d{k}_d{n}"] - fd).max() <= 1e-6 * scale, (n, k)
 
 
-@pytest.mark.slow  # the adjoint's machinery is the 2-D pairs' (test_mortar.py); the kernel is the DDM test's
-def test_crown_adjoint_equals_ddm(crown):
+def adjoint_equals_ddm(pb, names, steps):
     """The adjoint gradient of a response of the tractions = the DDM's for every
     parameter, and (projected on the design velocity) with respect to every nodal
     coordinate of both bodies."""
-    pb, _ = crown
-
     def response(model):
         def f(w, p, t):
             c = model.contact_fields(w, p, t, 0)
             return jnp.sum(c["area"] * (c["p_N"] ** 2 + c["p_T"][:, 0] * c["p_N"]))
         return f
-    ga = sg.gradient(pb, response, wrt=NAMES + ["nodes"], steps=STEPS, method=sg.Adjoint())
-    gd = sg.gradient(pb, response, wrt=NAMES, steps=STEPS, method=sg.DDM())
-    for n in NAMES:
-        assert ga[n] == pytest.approx(gd[n], rel=1e-10, abs=1e-12 * abs(gd["p"])), n
+    ga = sg.gradient(pb, response, wrt=names + ["nodes"], steps=steps, method=sg.Adjoint())
+    gd = sg.gradient(pb, response, wrt=names, steps=steps, method=sg.DDM())
+    scale = max(abs(gd[n]) for n in names)
+    for n in names:
+        assert ga[n] == pytest.approx(gd[n], rel=1e-10, abs=1e-12 * scale), n
     assert np.sum(np.asarray(ga["nodes"]) * pb.shape["c"]) == pytest.approx(gd["c"], rel=1e-10)
+
+
+@pytest.mark.slow  # the adjoint's machinery is the 2-D pairs' (test_mortar.py); the kernel is the DDM test's
+def test_crown_adjoint_equals_ddm(crown):
+    adjoint_equals_ddm(crown[0], NAMES, STEPS)
 
 
 def test_a_rigid_motion_of_a_patch_changes_nothing():
@@ -237,30 +258,6 @@ def test_a_rigid_motion_of_a_patch_changes_nothing():
         assert abs(float(g1) - float(g0)) <= 1e-12
         assert np.abs(y1 - y0 @ A.T).max() <= 1e-12
         assert np.abs(n1 - n0 @ A.T).max() <= 1e-12
-
-
-@pytest.mark.slow  # the kernel's invariance under any rotation: the patch test above, in CI
-def test_a_rigid_motion_of_the_whole_problem_changes_nothing(crown):
-    """The crown problem turned by 90 degrees about z and moved (its supports
-    turned with it: what held x now holds y and the reverse, the slide d now
-    along y): pressures, status, the traction vectors (turned) and the
-    pressures' sensitivities equal the original's to 1e-9."""
-    pb, sol = crown
-    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    b = np.array([2.0, -3.0, 1.5])
-    m = pb.mesh
-    mesh = Mesh3D(m.nodes @ R.T + b, m.cells, m.node_sets, m.face_sets)
-    fixed = ([Fixed("low.z0", k) for k in range(3)] + [Fixed("up.z1", 0)]
-             + [Fixed("up.z1", 1, "d", ramp=sg.Ramp(0.5, 1.0))])
-    turned = dataclasses.replace(pb, mesh=mesh, fixed=fixed, shape={"c": pb.shape["c"] @ R.T})
-    a, t = sol.contact(), sg.solve(turned, steps=STEPS, wrt=NAMES).contact()
-    scale = np.abs(a["p_N"]).max()
-    assert np.array_equal(a["status"], t["status"])
-    assert np.abs(a["p_N"] - t["p_N"]).max() <= 1e-9 * scale
-    assert np.abs(a["traction"] @ R.T - t["traction"]).max() <= 1e-9 * scale
-    for n in NAMES:
-        d = np.abs(a["dp_N_d" + n]).max()
-        assert np.abs(a["dp_N_d" + n] - t["dp_N_d" + n]).max() <= 1e-9 * d, n
 
 
 @pytest.mark.slow  # two problems' programs to compile; the pair's code is the patch and crown tests'
@@ -342,9 +339,12 @@ def test_bad_pairs():
     with pytest.raises(InputError, match="one dimension"):
         from signorini.fem.mesh import rectangle
         merge({"a": blocks(1, 1), "b": rectangle(np.linspace(0, 1, 2), np.linspace(0, 1, 2))})
-    with pytest.raises(InputError, match="one kind of cell"):
-        low = box(np.linspace(0, 1, 2), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
-        merge({"a": low, "b": tetrahedra(low)})
+    low = box(np.linspace(0, 1, 2), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
+    tet = tetrahedra(box(np.linspace(1, 2, 2), np.linspace(0, 1, 2), np.linspace(0, 1, 2)))
+    joined = np.concatenate([tet.cells + 8, -np.ones((len(tet.cells), 4), int)], axis=1)
+    joined[:, :4] = np.where(np.isin(joined[:, :4] - 8, [0, 2, 4, 6]), joined[:, :4] - 7, joined[:, :4])
+    with pytest.raises(InputError, match="joins hexahedra and tetrahedra"):  # no pyramids
+        Mesh3D(np.vstack([low.nodes, tet.nodes]), np.vstack([low.cells, joined]))
 
 
 @pytest.mark.parametrize("tets", [False, True], ids=["quadrilaterals", "triangles"])
@@ -389,3 +389,112 @@ def test_finite_kinematics_tangent_by_batches_of_nodes(monkeypatch):
     sol = sg.solve(pb, steps=1)
     S = np.asarray(sol.stress()[0]).reshape(-1, 3, 3)
     assert np.ptp(S, axis=0).max() <= 1e-10 * P
+
+
+# ------------------------------------------- a mixed mesh, turned arbitrarily
+HELD = ["E1", "E2", "d", "w", "mu", "c"]
+
+
+def held_crown(R=np.eye(3), b=np.zeros(3)):
+    """The crown's blocks, the upper one of tetrahedra (a mixed mesh: triangles
+    against quadrilaterals), the lower block's bottom held and the upper block's
+    top moved along t (d, 0, -w) (pressed and slid at once, partial slip); the
+    whole problem (mesh, supports, design velocity) turned by R and moved by b:
+    held in every component, the supports turn with it."""
+    low = box(np.linspace(-1, 1, 5), np.linspace(-1, 1, 5), np.linspace(0, 0.5, 3))
+    up = tetrahedra(box(np.linspace(-0.9, 0.9, 5), np.linspace(-0.9, 0.9, 5), np.linspace(0.5, 0.9, 3)))
+    mesh = merge({"low": low, "up": up})
+    X = mesh.nodes
+    V = np.zeros_like(X)
+    in_up = mesh.node_sets["up"]
+    V[in_up, 2] = (0.9 - X[in_up, 2]) / 0.4 * (X[in_up, 0] ** 2 + X[in_up, 1] ** 2)
+    mesh = Mesh3D((X + 0.1 * V) @ R.T + b, mesh.cells, mesh.node_sets, mesh.face_sets)
+    params = {"E1": 100.0, "E2": 150.0, "nu": 0.3, "eps": 100.0, "eps_t": 100.0, "mu": 0.4,
+              "d": 0.01, "w": 0.05, "c": 0.1}
+    fixed = [Fixed("low.z0", k) for k in range(3)] + [
+        Fixed("up.z1", k, lambda p, k=k: R[k, 0] * p["d"] - R[k, 2] * p["w"]) for k in range(3)]
+    return sg.Problem(mesh, Bodies({"low": LinearElastic(E="E1"), "up": LinearElastic(E="E2")}),
+                      params, fixed=fixed, shape={"c": V @ R.T}, shape_nominal={"c": 0.1},
+                      contact=[pair("up.z0", "low.z1", sg.Coulomb())])
+
+
+@pytest.fixture(scope="module")
+def held():
+    pb = held_crown()
+    return pb, sg.solve(pb, steps=2, wrt=HELD)
+
+
+def test_mixed_mesh_ddm_equals_fd(held):
+    """On the mixed mesh, through a frictional path with stick and slip: DDM =
+    central FD of the pressures and tangential tractions (in CI: the tetrahedral
+    body's modulus, mu and the shape)."""
+    pb, sol = held
+    c = sol.contact()
+    assert {"stick", "slip"} <= set(c["status"][c["p_N"] > 0])
+    tight = sg.NewtonOptions(rtol=1e-13, step_tol=1e-11)
+    for n in HELD if not _ci() else ["E2", "mu", "c"]:
+        h = 1e-5 * abs(pb.params[n])
+        f = [sg.solve(pb.with_params(**{n: pb.params[n] + s * h}), steps=2, options=tight).contact()
+             for s in (1, -1)]
+        scale = np.abs(c["dp_N_d" + n]).max()
+        for k in ("p_N", "p_T"):
+            fd = (f[0][k] - f[1][k]) / (2 * h)
+            assert np.abs(c[f"d{k}_d{n}"] - fd).max() <= 1e-6 * scale, (n, k)
+
+
+def test_an_arbitrary_rigid_motion_of_the_whole_problem_changes_nothing(held):
+    """The mixed problem turned by an arbitrary rotation and moved: pressures,
+    status, the traction vectors (turned) and the sensitivities of the pressures
+    to every parameter equal the original's to 1e-9."""
+    pb, sol = held
+    rng = np.random.default_rng(7)
+    R = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    R *= np.sign(np.linalg.det(R))
+    a, t = sol.contact(), sg.solve(held_crown(R, np.array([2.0, -3.0, 1.5])), steps=2, wrt=HELD).contact()
+    scale = np.abs(a["p_N"]).max()
+    assert np.array_equal(a["status"], t["status"])
+    assert np.abs(a["p_N"] - t["p_N"]).max() <= 1e-9 * scale
+    assert np.abs(a["traction"] @ R.T - t["traction"]).max() <= 1e-9 * scale
+    for n in HELD:
+        d = np.abs(a["dp_N_d" + n]).max()
+        assert np.abs(a["dp_N_d" + n] - t["dp_N_d" + n]).max() <= 1e-9 * d, n
+
+
+@pytest.mark.slow  # the adjoint's machinery: test_mortar.py; the mixed mesh's kernels: the DDM test
+def test_mixed_mesh_adjoint_equals_ddm(held):
+    """The adjoint = the DDM on the mixed mesh."""
+    adjoint_equals_ddm(held[0], HELD, 2)
+
+
+def test_mixed_mesh_with_plasticity_and_its_files(tmp_path):
+    """J2 plasticity on the mixed patch (the tetrahedra's one Gauss point beside
+    the hexahedra's eight in one history array): a uniform Cauchy stress and
+    plastic strain in the cells of both kinds, the sensitivity to the yield
+    stress through the history = central FD, and one VTU file holding both kinds
+    of cell with their fields."""
+    import meshio
+
+    from signorini.fem.element import STANDARD
+    from signorini.materials import J2Plasticity
+    from signorini.post.files import write_vtu
+
+    pb = dataclasses.replace(patch_problem(2, 3, tets="up", kinematics="linear", material=J2Plasticity()),
+                             formulation=STANDARD)
+    pb = dataclasses.replace(pb, params={**pb.params, "sigma_y": 0.6, "H": 10.0})
+    sol = sg.solve(pb, steps=2, wrt=["sigma_y"])
+    assert [inc.switches["elastic_plastic"] for inc in sol.increments] == [[], []]  # no padded point
+    S = np.asarray(sol.stress()[0]).reshape(-1, 3, 3)
+    assert np.ptp(S, axis=0).max() <= 1e-10 * P
+    m = sol.model
+    alpha = m.gauss_mean(np.asarray(sol.state_after(1)[2])[..., 9])
+    assert alpha.min() > 1e-3 and np.ptp(alpha) <= 1e-10 * alpha.max()
+    h = 1e-6
+    u = [sg.solve(dataclasses.replace(pb, params={**pb.params, "sigma_y": 0.6 + s * h}), steps=2).displacement()
+         for s in (1, -1)]
+    d = np.asarray(sol.displacement_sensitivity("sigma_y"))
+    assert np.abs(d - (u[0] - u[1]) / (2 * h)).max() <= 1e-6 * np.abs(d).max()
+    write_vtu(sol, tmp_path / "both.vtu")
+    vtu = meshio.read(tmp_path / "both.vtu")
+    assert {b.type: len(b.data) for b in vtu.cells} == {"hexahedron": 8, "tetra": 108}
+    eps = np.concatenate(vtu.cell_data["equivalent_plastic_strain"])
+    assert np.ptp(eps) <= 1e-10 * eps.max()

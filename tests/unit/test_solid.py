@@ -164,7 +164,7 @@ def test_bad_3d_meshes_are_named():
     m = box([0, 1, 2], [0, 1], [0, 1])
     with pytest.raises(InputError, match=r"\(n_nodes, 3\).*2-D mesh"):
         Mesh3D(m.nodes[:, :2], m.cells)
-    with pytest.raises(InputError, match="one kind per mesh"):
+    with pytest.raises(InputError, match=r"\(n_cells, 4\) tetrahedra"):
         Mesh3D(m.nodes, m.cells[:, :6])
     flipped = m.cells.copy()
     flipped[1] = flipped[1][[4, 5, 6, 7, 0, 1, 2, 3]]

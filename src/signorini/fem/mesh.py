@@ -210,7 +210,8 @@ def merge(bodies: Mapping[str, Mesh]) -> Mesh:
     """One mesh of several bodies (disconnected: no node is shared).
 
     ``bodies``: name -> mesh, all 2-D (:class:`Mesh`) or all 3-D
-    (:class:`~signorini.fem.mesh3d.Mesh3D`, of one kind of cell). Each body's node
+    (:class:`~signorini.fem.mesh3d.Mesh3D`; hexahedral and tetrahedral bodies
+    together make a mixed mesh, see :mod:`signorini.fem.mesh3d`). Each body's node
     and edge (2-D) or face (3-D) sets keep their names prefixed by the body's,
     ``"<body>.<set>"``; the node set ``"<body>"`` holds all its nodes. Node and
     cell numbers follow the order of ``bodies``.
@@ -222,17 +223,18 @@ def merge(bodies: Mapping[str, Mesh]) -> Mesh:
         raise InputError("merge takes meshes of one dimension: all 2-D or all 3-D; got "
                          + ", ".join(f"{k!r} {m.nodes.shape[1]}-D" for k, m in bodies.items()))
     dim = dims.pop()
-    kinds = {m.cells.shape[1] for m in bodies.values()}
-    if dim == 3 and len(kinds) > 1:
-        raise InputError("merge: the 3-D bodies must have one kind of cell (all hexahedra or all "
-                         "tetrahedra); got " + ", ".join(f"{k!r} {m.cell.name}" for k, m in bodies.items()))
+    # 3-D bodies of both kinds: a mixed mesh, each tetrahedron padded to 8 columns
+    width = max(m.cells.shape[1] for m in bodies.values())
     nodes, cells, node_sets, boundary_sets = [], [], {}, {}
     off = 0
     for name, m in bodies.items():
         if "." in name:
             raise InputError(f"body name {name!r}: a body name may not contain '.'")
         nodes.append(m.nodes)
-        cells.append(m.cells + off)
+        c = m.cells + off
+        if c.shape[1] < width:  # tetrahedra among hexahedra: (Mesh3D's padding)
+            c = np.concatenate([c, np.repeat(c[:, :1], width - c.shape[1], axis=1)], axis=1)
+        cells.append(c)
         node_sets[name] = off + np.arange(m.n_nodes)
         for k, v in m.node_sets.items():
             node_sets[f"{name}.{k}"] = v + off

@@ -1,11 +1,20 @@
-"""Meshes of 3-D cells (8-node hexahedra or 4-node tetrahedra, one kind per
-mesh) with named node sets and boundary-face sets.
+"""Meshes of 3-D cells (8-node hexahedra, 4-node tetrahedra, or both in bodies
+of their own) with named node sets and boundary-face sets.
 
 Conventions: ``nodes`` (n_nodes, 3) reference coordinates; ``cells`` (n_cells, 8)
 or (n_cells, 4) in VTK/gmsh node order with a positive volume; a face set is
 (n_faces, 4) quadrilaterals or (n_faces, 3) triangles, each numbered
 counter-clockwise seen from outside the body, so that the outward normal
 follows by the right hand (the orientation of the face in the cell that owns it).
+
+A *mixed* mesh holds hexahedra and tetrahedra, each body (connected part) of one
+kind (a conforming mesh of both in one body needs pyramids, which signorini
+does not have): ``cells`` is (n_cells, 8), a tetrahedron's row its four nodes
+followed by ``-1`` four times (given) or by its first node four times (as
+stored: every row then indexes nodes, and a tetrahedron adds nothing at its
+repeated node). :meth:`Mesh3D.groups` gives the cells of each kind. Such meshes
+come from :func:`signorini.fem.mesh.merge` of a hexahedral and a tetrahedral
+body, or from a gmsh file with both.
 """
 
 from __future__ import annotations
@@ -22,16 +31,21 @@ from .solid import CellType, cell_type
 
 @dataclass(frozen=True)
 class Mesh3D(Cells):
-    """A 3-D mesh of hexahedra or tetrahedra (the 2-D one, for plane strain and
-    axisymmetry, is :class:`~signorini.fem.mesh.Mesh`). Made by :func:`box` and
-    :func:`tetrahedra`, or read from a file by :func:`signorini.read_mesh`; a
-    :class:`~signorini.model.problem.Problem` on it is 3-D, without kinematics.
+    """A 3-D mesh of hexahedra, tetrahedra or both (the 2-D one, for plane
+    strain and axisymmetry, is :class:`~signorini.fem.mesh.Mesh`). Made by
+    :func:`box` and :func:`tetrahedra`, joined by
+    :func:`~signorini.fem.mesh.merge`, or read from a file by
+    :func:`signorini.read_mesh`; a :class:`~signorini.model.problem.Problem` on it
+    is 3-D, without kinematics.
 
     Attributes:
         nodes: (n_nodes, 3) reference coordinates.
-        cells: (n_cells, 8) hexahedra or (n_cells, 4) tetrahedra.
+        cells: (n_cells, 8) hexahedra, (n_cells, 4) tetrahedra, or (n_cells, 8)
+            both: a tetrahedron's row is its four nodes then -1 (or its first
+            node) four times; each body of one kind (see the module's docstring).
         node_sets: name -> sorted node indices.
-        face_sets: name -> (n_faces, 4 or 3) boundary faces, outward.
+        face_sets: name -> (n_faces, 4 or 3) boundary faces, outward; each set
+            all quadrilaterals or all triangles.
     """
 
     nodes: np.ndarray
@@ -49,11 +63,13 @@ class Mesh3D(Cells):
                              f"{nodes.shape}{hint}")
         if cells.ndim != 2 or cells.shape[1] not in (8, 4):
             raise InputError(f"cells of a 3-D mesh must be (n_cells, 8) hexahedra or (n_cells, 4) "
-                             f"tetrahedra, one kind per mesh; got shape {cells.shape}")
+                             f"tetrahedra (both: (n_cells, 8), a tetrahedron's row padded with -1); "
+                             f"got shape {cells.shape}")
         if len(cells) == 0:
             raise InputError("the mesh has no cells; a body needs at least one cell")
         if not np.issubdtype(cells.dtype, np.integer):
             raise InputError(f"cells must be node indices (integers), got {cells.dtype}")
+        cells = _stored(cells)
         if cells.min() < 0 or cells.max() >= len(nodes):
             raise InputError(f"cells refer to node indices outside 0..{len(nodes) - 1}")
         if not np.all(np.isfinite(nodes)):
@@ -71,14 +87,19 @@ class Mesh3D(Cells):
             ns[k] = v
         object.__setattr__(self, "node_sets", ns)
         check_cells(self.nodes, cells)
+        if self.mixed:
+            _check_kinds_apart(cells)
         boundary = {face_key(f): tuple(f) for f in self.boundary_faces()}
-        k_face = self.cell.faces.shape[1]
         fs = {}
         for k, v in self.face_sets.items():
             a = np.asarray(v)
-            if a.ndim != 2 or a.shape[1] != k_face or (a.size and not np.issubdtype(a.dtype, np.integer)):
-                raise InputError(f"face set {k!r} must be an (n_faces, {k_face}) array of node "
-                                 f"indices for {self.cell.name} cells, got shape {a.shape}")
+            if a.ndim != 2 or a.shape[1] not in self._face_sizes() or (
+                    a.size and not np.issubdtype(a.dtype, np.integer)):
+                kinds = " or ".join(f"(n_faces, {n}) array of node indices for {c} cells"
+                                    for n, c in self._face_sizes().items())
+                raise InputError(f"face set {k!r} must be an {kinds}, got shape {a.shape}"
+                                 + (" (a face set is all triangles or all quadrilaterals: give "
+                                    "one set per kind)" if self.mixed else ""))
             for f in a:
                 own = boundary.get(face_key(f))
                 if own is None:
@@ -92,15 +113,38 @@ class Mesh3D(Cells):
         object.__setattr__(self, "face_sets", fs)
 
     @property
+    def mixed(self) -> bool:
+        """Whether the mesh holds hexahedra and tetrahedra."""
+        return bool(self.cells.shape[1] == 8 and np.any(_tetra_rows(self.cells)))
+
+    @property
     def cell(self) -> CellType:
+        """The kind of every cell (hexahedron or tetrahedron); a mixed mesh has
+        none: :meth:`groups`."""
+        if self.mixed:
+            raise InputError("this mesh holds hexahedra and tetrahedra: it has no one kind of "
+                             "cell (Mesh3D.groups() gives the cells of each kind)")
         return cell_type(self.cells.shape[1])
 
-    def boundary_faces(self) -> np.ndarray:
-        """(n, k) faces that belong to exactly one cell, in that cell's (outward) numbering."""
-        f = self.cells[:, self.cell.faces].reshape(-1, self.cell.faces.shape[1])
-        _, inv, counts = np.unique(np.sort(f, axis=1), axis=0, return_inverse=True,
-                                   return_counts=True)
-        return f[counts[inv.ravel()] == 1]
+    def groups(self) -> list[tuple[CellType, np.ndarray]]:
+        """[(kind, indices of its cells)], hexahedra first: one entry for a mesh of
+        one kind; a tetrahedron's nodes are the first four of its row."""
+        return cell_groups(self.cells)
+
+    def _face_sizes(self) -> dict:
+        return {c.faces.shape[1]: c.name for c, _ in self.groups()}
+
+    def boundary_faces(self) -> list | np.ndarray:
+        """Faces that belong to exactly one cell, in that cell's (outward) numbering:
+        (n, k) of the mesh's kind; for a mixed mesh a list of (n, 4) quadrilaterals
+        and (n, 3) triangles."""
+        out = []
+        for cell, idx in self.groups():
+            f = self.cells[idx][:, cell.faces].reshape(-1, cell.faces.shape[1])
+            _, inv, counts = np.unique(np.sort(f, axis=1), axis=0, return_inverse=True,
+                                       return_counts=True)
+            out.append(f[counts[inv.ravel()] == 1])
+        return out[0] if len(out) == 1 else [f for part in out for f in part]
 
     def face_set(self, name: str) -> np.ndarray:
         return named(self.face_sets, "face", name)
@@ -117,15 +161,60 @@ def _same_cycle(a: tuple, b: tuple) -> bool:
     return k >= 0 and b[k:] + b[:k] == a
 
 
+def _tetra_rows(cells: np.ndarray) -> np.ndarray:
+    """(n,) True for the rows of an (n, 8) array that are tetrahedra (padded)."""
+    if cells.shape[1] != 8:
+        return np.ones(len(cells), bool)
+    return np.all(cells[:, 4:] == cells[:, :1], axis=1)
+
+
+def _stored(cells: np.ndarray) -> np.ndarray:
+    """The cells as stored: a tetrahedron padded with -1 gets its first node instead."""
+    if cells.shape[1] != 8:
+        return cells
+    pad = np.all(cells[:, 4:] == -1, axis=1)
+    if not pad.any():
+        return cells
+    if np.any(cells[pad, :4] < 0):
+        raise InputError("cells: a tetrahedron padded with -1 needs four node indices first")
+    cells = np.array(cells)
+    cells[pad, 4:] = cells[pad, :1]
+    return cells
+
+
+def cell_groups(cells: np.ndarray) -> list[tuple[CellType, np.ndarray]]:
+    """[(kind, indices of its cells)] of a cell array (see :meth:`Mesh3D.groups`)."""
+    if cells.shape[1] == 4:
+        return [(cell_type(4), np.arange(len(cells)))]
+    tet = _tetra_rows(cells)
+    return [(cell_type(k), np.nonzero(m)[0]) for k, m in ((8, ~tet), (4, tet)) if m.any()]
+
+
+def _check_kinds_apart(cells: np.ndarray) -> None:
+    """A mixed mesh: no node in cells of both kinds (a conforming hexahedron-to-
+    tetrahedron interface needs pyramids)."""
+    tet = _tetra_rows(cells)
+    both = np.intersect1d(cells[~tet].ravel(), cells[tet, :4].ravel())
+    if both.size:
+        raise InputError(
+            f"the mesh joins hexahedra and tetrahedra at {both.size} node(s) (first: node "
+            f"{int(both[0])}); a conforming mesh of both needs pyramids, which signorini does "
+            "not have: mesh each body with one kind of cell (bodies of different kinds may touch "
+            "through a contact pair)")
+
+
 def cell_jacobians(nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """det(dX/dxi) (n_cells, n_check) at the corners of each cell (hexahedra; the
     trilinear map is one-to-one if these are positive for a cell with planar or
-    mildly warped faces) or its constant value (tetrahedra)."""
-    cell = cell_type(cells.shape[1])
-    X = nodes[cells]  # (c, n, 3)
-    dN = np.stack([cell.gradient(p) for p in cell.corners]) if cell.n_nodes == 8 else cell.dN
-    J = np.einsum("gai,caj->cgji", dN, X)
-    return np.linalg.det(J)
+    mildly warped faces) or its constant value (tetrahedra; in a mixed mesh
+    repeated in the eight columns)."""
+    det = np.zeros((len(cells), 8 if cells.shape[1] == 8 else 1))
+    for cell, idx in cell_groups(cells):
+        X = nodes[cells[idx][:, :cell.n_nodes]]  # (c, n, 3)
+        dN = np.stack([cell.gradient(p) for p in cell.corners]) if cell.n_nodes == 8 else cell.dN
+        d = np.linalg.det(np.einsum("gai,caj->cgji", dN, X))
+        det[idx] = d if d.shape[1] == det.shape[1] else np.repeat(d, det.shape[1], axis=1)
+    return det
 
 
 def check_cells(nodes: np.ndarray, cells: np.ndarray, what: str = "mesh") -> None:
@@ -136,11 +225,13 @@ def check_cells(nodes: np.ndarray, cells: np.ndarray, what: str = "mesh") -> Non
     bad = np.nonzero(det.min(axis=1) <= 1e-14 * scale)[0]
     if bad.size:
         c = int(bad[0])
+        kind = cell_type(8 if cells.shape[1] == 8 and not _tetra_rows(cells[c:c + 1])[0] else 4)
+        nodes_c = cells[c, :kind.n_nodes]
         raise InvertedElementError(
             f"{what}: {bad.size} inverted or degenerate cell(s), first is cell {c} with nodes "
-            f"{cells[c].tolist()} at {nodes[cells[c]].round(6).tolist()} (Jacobians "
-            f"{det[c].round(8).tolist()}). Number the nodes of each "
-            f"{cell_type(cells.shape[1]).name} in VTK/gmsh order with a positive volume.")
+            f"{nodes_c.tolist()} at {nodes[nodes_c].round(6).tolist()} (Jacobians "
+            f"{np.unique(det[c]).round(8).tolist() if kind.n_nodes == 4 else det[c].round(8).tolist()}). "
+            f"Number the nodes of each {kind.name} in VTK/gmsh order with a positive volume.")
 
 
 def box(xs, ys, zs) -> Mesh3D:
@@ -186,7 +277,7 @@ _HEX_TO_TETS = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6],
 def tetrahedra(mesh: Mesh3D) -> Mesh3D:
     """The hexahedral ``mesh`` with every cell split into six tetrahedra (same
     nodes and node sets; each quadrilateral face set split into triangles)."""
-    if mesh.cells.shape[1] != 8:
+    if mesh.cells.shape[1] != 8 or mesh.mixed:
         raise InputError("tetrahedra() splits hexahedra; this mesh has tetrahedra already")
     cells = mesh.cells[:, _HEX_TO_TETS].reshape(-1, 4)
     tets = Mesh3D(mesh.nodes, cells)

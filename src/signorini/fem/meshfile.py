@@ -102,10 +102,11 @@ def read_mesh(path, dim: int | None = None) -> "Mesh | Mesh3D":
     of quadrilaterals (physical surfaces: the bodies of a file with several) the
     node set of their cells (what :class:`~signorini.materials.Bodies` names).
 
-    **3-D**: 8-node hexahedra or 4-node tetrahedra (one kind per file) become the
-    cells, renumbered where their volume is negative. Every named physical group of
-    faces (quadrilaterals for hexahedra, triangles for tetrahedra) becomes a face
-    set, numbered outward as in the cell that owns each face, and a node set of the
+    **3-D**: 8-node hexahedra and 4-node tetrahedra become the cells, renumbered
+    where their volume is negative (a file with both: a mixed mesh, hexahedra first,
+    each body of one kind; see :mod:`signorini.fem.mesh3d`). Every named physical
+    group of faces (quadrilaterals for hexahedra, triangles for tetrahedra, one
+    kind per group) becomes a face set, numbered outward as in the cell that owns each face, and a node set of the
     same name; named groups of volumes (the bodies), lines and points become node
     sets.
 
@@ -119,8 +120,8 @@ def read_mesh(path, dim: int | None = None) -> "Mesh | Mesh3D":
             valid mesh, has no cells of a body (only lines or points), is not of
             dimension ``dim`` (the error's ``dim`` attribute is then the file's
             dimension); a 2-D file that is not planar or has no quadrilaterals; a
-            3-D file that mixes hexahedra and tetrahedra or has other volume
-            cells; a set that is not on the boundary. The message names the file.
+            3-D file with other volume cells, or with hexahedra and tetrahedra
+            sharing nodes; a set that is not on the boundary. The message names the file.
     """
 
     if dim not in (None, 2, 3):
@@ -288,34 +289,38 @@ def read_mesh_3d(path) -> Mesh3D:
 def _mesh_3d(path, m) -> Mesh3D:
     types = {c.type for c in m.cells}
     kinds = sorted(types & set(_VOLUME))
-    if len(kinds) > 1:
-        raise InputError(f"{path}: the mesh mixes {' and '.join(kinds)}; signorini takes one kind "
-                         "of cell per mesh (in gmsh: mesh the volume with one algorithm, e.g. "
-                         "all tetrahedra, or recombine every volume into hexahedra)")
     if not kinds:  # volume cells, none of them hexahedra or tetrahedra
         raise InputError(f"{path}: no hexahedra or tetrahedra (found {sorted(types)}); signorini "
-                         "reads 3-D meshes of 8-node hexahedra or 4-node tetrahedra, one kind per "
-                         "mesh (in gmsh: mesh order 1; recombine the volume for hexahedra, or do "
-                         "not for tetrahedra)")
-    kind = kinds[0]
-    face = _VOLUME[kind]
-    other = sorted(types - {kind, face, "line", "vertex"})
+                         "reads 3-D meshes of 8-node hexahedra or 4-node tetrahedra (in gmsh: mesh "
+                         "order 1; recombine the volume for hexahedra, or do not for tetrahedra)")
+    kind = " and ".join(kinds)
+    faces_of = {_VOLUME[k] for k in kinds}
+    other = sorted(types - set(kinds) - faces_of - {"line", "vertex"})
     if other:
         raise InputError(f"{path}: unsupported cell types {other} beside {kind}; signorini reads "
-                         f"8-node hexahedra or 4-node tetrahedra with {face} face sets (second-order "
-                         "cells: mesh with order 1)")
+                         f"8-node hexahedra or 4-node tetrahedra with {' and '.join(sorted(faces_of))} "
+                         "face sets (second-order cells: mesh with order 1; pyramids and prisms: "
+                         "mesh each body with one kind)")
     points = np.asarray(m.points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 3:
         raise InputError(f"{path}: points have shape {points.shape}; a 3-D mesh needs x, y, z")
-    cells = np.concatenate([c.data for c in m.cells if c.type == kind]).astype(np.int64)
+    blocks = {k: np.concatenate([c.data for c in m.cells if c.type == k]).astype(np.int64)
+              for k in kinds}
     used = np.zeros(len(points), bool)
-    used[cells.ravel()] = True
+    for c in blocks.values():
+        used[c.ravel()] = True
     new = -np.ones(len(points), np.int64)
     new[used] = np.arange(used.sum())
     nodes = points[used]
-    cells = new[cells]
-    flip = cell_jacobians(nodes, cells).sum(axis=1) < 0
-    cells[flip] = cells[flip][:, _MIRROR[kind]]
+    for k, c in blocks.items():
+        c = new[c]
+        flip = cell_jacobians(nodes, c).sum(axis=1) < 0
+        c[flip] = c[flip][:, _MIRROR[k]]
+        blocks[k] = c
+    # hexahedra, then tetrahedra padded as Mesh3D stores them in a mixed mesh
+    cells = blocks[kinds[0]] if len(kinds) == 1 else np.concatenate(
+        [blocks["hexahedron"], np.concatenate([blocks["tetra"], -np.ones((len(blocks["tetra"]), 4),
+                                                                         np.int64)], axis=1)])
     try:
         probe = Mesh3D(nodes, cells)
     except InputError as e:
@@ -335,7 +340,7 @@ def _mesh_3d(path, m) -> Mesh3D:
                     raise InputError(f"{path}: set {name!r} has nodes that belong to no {kind}; put "
                                      "the group on the meshed body")
             data = new[data]
-            if block.type == face:
+            if block.type in faces_of:
                 faces = []
                 for f in data:
                     own = boundary.get(face_key(f))
@@ -344,6 +349,10 @@ def _mesh_3d(path, m) -> Mesh3D:
                                          f"{nodes[f].round(6).tolist()} that is not on the boundary "
                                          f"of the {kind} mesh; loads and contact need boundary faces")
                     faces.append(own)
+                if name in face_sets and face_sets[name].shape[1] != len(faces[0]):
+                    raise InputError(f"{path}: face set {name!r} has triangles and quadrilaterals; "
+                                     "a face set is of one kind: name the faces of the "
+                                     "tetrahedra and of the hexahedra apart")
                 face_sets[name] = np.concatenate(
                     [face_sets.get(name, np.empty((0, len(f)), np.int64)), np.asarray(faces)])
             node_sets[name] = np.union1d(node_sets.get(name, []), data.ravel()).astype(np.int64)

@@ -116,7 +116,9 @@ class Solid3D:
     """The kinematics of a 3-D body of ``cell`` cells (hexahedra or tetrahedra): the
     full 3x3 displacement gradient, volumes det J, contact areas of the faces
     (:func:`face_areas`). The element kernels of this module
-    take it (or the cell type) where the 2-D ones take their kinematics."""
+    take it (or the cell type) where the 2-D ones take their kinematics.
+    ``cell`` None: a mixed mesh (:mod:`signorini.fem.mesh3d`), whose model runs
+    the kernels of each kind on its cells."""
 
     cell: CellType = None
 
@@ -126,7 +128,9 @@ class Solid3D:
 
     @property
     def n_gauss(self) -> int:
-        return self.cell.n_gauss
+        """Gauss points per cell (a mixed mesh: a hexahedron's; a tetrahedron's
+        history is padded to as many)."""
+        return (self.cell or HEXAHEDRON).n_gauss
 
     def check_mesh(self, X) -> None:
         if np.asarray(X).shape[1] != 3:

@@ -6,6 +6,8 @@ model's layout, kernels and compiled programs)."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from .._jax import jax, jnp
 from ..contact.friction3d import tangent_basis
 
@@ -66,7 +68,7 @@ class ModelFields:
         """Pure function: what decides the branches of the non-smooth laws at w
         (docs/theory.md §11): per surface ``{"gap", "p_N", "stick_margin"}`` (nc,)
         (stick margin |lam^_T| - rho, inf where there is no friction branch), and
-        the yield ratio (n_cells, 4) of a material with ``yield_ratio`` (None else);
+        the yield ratio (n_cells, n_gauss) of a material with ``yield_ratio`` (None else);
         state_n is the state before the increment of w."""
         X = self.reference(params)
         u, lams = self.split(w)
@@ -84,9 +86,12 @@ class ModelFields:
         ratio = None
         if self.n_state and self.material.yield_ratio is not None:
             mp = self.material.values(params)
-            kin, form, mat = self.kinematics, self.formulation, self.material
-            ratio = self._over_cells(lambda ue, Xe, he, m: self.fem.element_yield_ratio(
+            form, mat = self.formulation, self.material
+            ratio = self._over_cells(lambda ue, Xe, he, m, kin: self.fem.element_yield_ratio(
                 ue, Xe, mat, m, he, kin, form), u, X, self._material_history(state_n), mp)
+            for kin, idx in self.groups:  # a tetrahedron's padded points: its own value,
+                if kin.n_gauss < ratio.shape[1]:  # not 0 ("on the yield surface")
+                    ratio = ratio.at[idx, kin.n_gauss:].set(ratio[idx, :1])
         return tuple(out), ratio
 
     def stresses(self, w, params, state_n=None):
@@ -96,6 +101,16 @@ class ModelFields:
         u, _ = self.split(w)
         mp = self.material.values(params)
         hn = self._material_history(state_n)
-        kin, form, mat = self.kinematics, self.formulation, self.material
-        return self._over_cells(lambda ue, Xe, he, m: self.fem.element_stress(ue, Xe, mat, m, he, kin, form),
-                                u, X, hn, mp)
+        form, mat = self.formulation, self.material
+        return self._over_cells(lambda ue, Xe, he, m, kin: self.fem.element_stress(
+            ue, Xe, mat, m, he, kin, form), u, X, hn, mp)
+
+    def gauss_mean(self, a) -> np.ndarray:
+        """(n_cells, ...) the mean over each cell's own Gauss points of a
+        Gauss-point array (n_cells, n_gauss, ...) (a mixed mesh's tetrahedra: their
+        one point, not the padding)."""
+        a = np.asarray(a)
+        out = np.empty((a.shape[0],) + a.shape[2:])
+        for kin, idx in self.groups:
+            out[idx] = a[idx, :kin.n_gauss].mean(axis=1)
+        return out

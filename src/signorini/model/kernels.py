@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fem import element
+from ..fem.solid import Solid3D
 from .._programs import Program
 from .._jax import jax, jnp, to_device
 from ..fem.assembly import SparsityPattern
@@ -153,9 +154,14 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         # for every mesh and run over chunks of cells and nodes
         # (contact pairs and per-body materials: whole-mesh programs only, the kinds'
         # programs take one material and no patches)
+        # the kinds of cell with the kernels' kinematics of each: one, or a mixed
+        # mesh's hexahedra and tetrahedra (whole-mesh programs only, a map per kind)
+        self.groups = ([(self.kinematics, np.arange(len(self.conn)))] if self.dim == 2 else
+                       [(Solid3D(c), idx) for c, idx in p.mesh.groups()])
+        self.mixed = len(self.groups) > 1
         self.by_kind = (len(self.conn) > self.WHOLE_MESH_UP_TO
                         and all(s.patches is None for s in layout.surfaces)
-                        and not getattr(self.material, "per_cell", False))
+                        and not getattr(self.material, "per_cell", False) and not self.mixed)
         self.cells = CellKernels.of(p.material, self.kinematics, self.formulation)
         self._edofs_ravel = None
         self.cache: dict = {}
@@ -338,11 +344,11 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         u, _ = self.split(w)
         mp = self.material.values(params)
         hn = self._material_history(state_n)
-        kin, form, mat, fem = self.kinematics, self.formulation, self.material, self.fem
+        form, mat, fem = self.formulation, self.material, self.fem
         if tangent:
-            f = lambda ue, Xe, he, m: fem.element_residual_tangent(ue, Xe, mat, m, he, kin, form)
+            f = lambda ue, Xe, he, m, kin: fem.element_residual_tangent(ue, Xe, mat, m, he, kin, form)
         else:
-            f = lambda ue, Xe, he, m: fem.element_update(ue, Xe, mat, m, he, kin, form)
+            f = lambda ue, Xe, he, m, kin: fem.element_update(ue, Xe, mat, m, he, kin, form)
         return self._over_cells(f, u, X, hn, mp)
 
     #: element kernels run over chunks of CELL_CHUNK cells on meshes of at least
@@ -354,12 +360,38 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     CHUNKED_FROM = 65536
 
     def _over_cells(self, f, u, X, hn, mp):
-        """f(u_e, X_e, h_e, mp_e) mapped over the cells (h_e None without history;
-        mp_e the material values, each cell's own with per-body materials,
-        :class:`~signorini.materials.Bodies`): a vmap, or on large meshes a
-        ``lax.map`` over chunks of vmaps (the last chunk padded with copies of
+        """f(u_e, X_e, h_e, mp_e, kin) mapped over the cells (h_e None without
+        history; mp_e the material values, each cell's own with per-body materials,
+        :class:`~signorini.materials.Bodies`; kin the kinematics of the cell's
+        kind). A mixed mesh maps each kind over its own cells (a tetrahedron's
+        nodes and Gauss points are the first of its row) and pads every output to
+        the hexahedron's shape with zeros: a tetrahedron's forces and tangent add
+        nothing at its repeated node, its history beyond its one point is unused."""
+        if not self.mixed:
+            return self._map_cells(functools.partial(f, kin=self.kinematics), u, X,
+                                   np.asarray(self.conn), hn, mp)
+        per_cell = getattr(self.material, "per_cell", False)
+        parts = []
+        for kin, idx in self.groups:
+            h = None if hn is None else hn[idx, :kin.cell.n_gauss]
+            m = jax.tree_util.tree_map(lambda a, idx=idx: a[idx], mp) if per_cell else mp
+            parts.append(self._map_cells(functools.partial(f, kin=kin), u, X,
+                                         np.asarray(self.conn)[idx, :kin.cell.n_nodes], h, m))
+        n = len(self.conn)
+
+        def combine(*outs):
+            shape = tuple(max(sizes) for sizes in zip(*(o.shape[1:] for o in outs)))
+            whole = jnp.zeros((n,) + shape, outs[0].dtype)
+            for (_, idx), o in zip(self.groups, outs):
+                pad = [(0, 0)] + [(0, b - a) for a, b in zip(o.shape[1:], shape)]
+                whole = whole.at[idx].set(jnp.pad(o, pad))
+            return whole
+        return jax.tree_util.tree_map(combine, *parts)
+
+    def _map_cells(self, f, u, X, conn, hn, mp):
+        """f(u_e, X_e, h_e, mp_e) over the cells ``conn``: a vmap, or on large meshes
+        a ``lax.map`` over chunks of vmaps (the last chunk padded with copies of
         cell 0, dropped from the result)."""
-        conn = np.asarray(self.conn)
         n = conn.shape[0]
         per_cell = getattr(self.material, "per_cell", False)
         axes = (0, 0, 0 if hn is not None else None, 0 if per_cell else None)

@@ -94,7 +94,8 @@ class Problem:
             object.__setattr__(self, "shape_nominal", {k: self.params[k] for k in shape})
         if self.mesh.nodes.shape[1] == 3:  # a 3-D mesh: its own kinematics
             if self.kinematics is PLANE_STRAIN:
-                object.__setattr__(self, "kinematics", Solid3D(self.mesh.cell))
+                object.__setattr__(self, "kinematics",
+                                   Solid3D(None if self.mesh.mixed else self.mesh.cell))
             elif getattr(self.kinematics, "dim", 2) != 3:
                 raise InputError(f"{self.kinematics.name} kinematics need a 2-D mesh; this mesh is "
                                  "3-D (leave kinematics at its default for a 3-D body)")

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import InputError, SignoriniError
 from ..fem.mesh import check_orientation
+from ..fem.mesh3d import check_cells
 from ..params import as_jax, check_names, names_in, resolve
 
 
@@ -61,7 +62,11 @@ class ModelChecks:
             self._check_regularisation(s, params)
         if self.shape_names:
             X = np.asarray(self.reference(as_jax(params)))
-            check_orientation(X, self.conn, "reference mesh at the given shape parameters")
+            what = "reference mesh at the given shape parameters"
+            if self.dim == 3:
+                check_cells(X, self.conn, what)
+            else:
+                check_orientation(X, self.conn, what)
             self.kinematics.check_mesh(X)
 
     @staticmethod

@@ -95,18 +95,25 @@ def _fields(solution, i: int) -> tuple:
     state = solution.state_after(range(len(solution.increments))[i])
     if alpha is not None and m.n_state and state is not None:
         # Gauss-point history after the increment, averaged per cell
-        cell["equivalent_plastic_strain"] = [np.asarray(state[2])[..., 9].mean(axis=1)]
+        cell["equivalent_plastic_strain"] = [m.gauss_mean(np.asarray(state[2])[..., 9])]
         if inc.state_sens is not None:
             for k, name in enumerate(solution.names):
                 cell[f"dequivalent_plastic_strain_d{name}"] = [
-                    np.asarray(inc.state_sens[2])[k, ..., 9].mean(axis=1)]
+                    m.gauss_mean(np.asarray(inc.state_sens[2])[k, ..., 9])]
     if inc.switches is not None and m.n_state:
         on = np.zeros(len(m.conn))
         on[inc.switches["elastic_plastic"]] = 1
         cell["plastic_switch"] = [on]
     if getattr(solution, "shape_gradient", None) is not None and i in (-1, len(solution.increments) - 1):
         point["adjoint_shape_gradient"] = _vec3(solution.shape_gradient)
-    kind = "quad" if m.dim == 2 else m.kinematics.cell.name  # "hexahedron" or "tetra"
+    if m.dim == 2:
+        kind = "quad"
+    elif m.mixed:  # one kind per cell
+        kind = np.empty(len(m.conn), dtype=object)
+        for kin, idx in m.groups:
+            kind[idx] = kin.cell.name
+    else:
+        kind = m.kinematics.cell.name  # "hexahedron" or "tetra"
     conn = np.asarray(m.conn)
     parts_ = bodies(solution)
     if len(parts_) > 1:
@@ -128,9 +135,14 @@ def _write_part(path: Path, fields: tuple, parts_: list, body: str | None) -> No
         new = np.full(len(X), -1)
         new[nodes] = np.arange(nodes.size)
         X, conn = np.asarray(X)[nodes], new[conn[cells]]
+        if not isinstance(kind, str):  # a mixed mesh: a body is of one kind
+            kind = list(kind[cells])
+            kind = kind[0] if len(set(kind)) == 1 else kind
+            conn = conn[:, :4] if kind == "tetra" else conn
         point = {k: np.asarray(v)[nodes] for k, v in point.items()}
         cell = {k: [np.asarray(v[0])[cells]] for k, v in cell.items()}
-    helper.run("vtu", path, _vec3(X), kind, conn, point, cell)
+    helper.run("vtu", path, _vec3(X), kind if isinstance(kind, str) else list(kind), conn, point,
+               cell)
 
 
 def _write_vtu_arrays(path, points, cell_kind: str, cells, point_data: dict, cell_data: dict) -> None:

@@ -24,6 +24,8 @@ from ..errors import InputError
 
 #: VTK's cell type numbers of the cells the library writes
 CELL_TYPES = {"line": 3, "triangle": 5, "quad": 9, "tetra": 10, "hexahedron": 12}
+#: nodes of each kind
+_NODES = {"line": 2, "triangle": 3, "quad": 4, "tetra": 4, "hexahedron": 8}
 #: VTK's names of the array types written (anything else is written as Float64)
 _TYPES = {np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32",
           np.dtype(np.int64): "Int64", np.dtype(np.int32): "Int32", np.dtype(np.uint8): "UInt8"}
@@ -33,23 +35,34 @@ BLOCK = 32768
 LEVEL = 1
 
 
-def write_unstructured(path, points, cell_kind: str, cells, point_data: dict,
+def write_unstructured(path, points, cell_kind, cells, point_data: dict,
                        cell_data: dict) -> None:
-    """Write ``path``: points (n, 3), one block of cells of kind ``cell_kind``
+    """Write ``path``: points (n, 3), cells of kind ``cell_kind``
     (:data:`CELL_TYPES`; connectivity (n_cells, k) in VTK's node order),
     ``point_data`` {name: (n,) or (n, c)} and ``cell_data`` {name: (n_cells,
-    ...) or a one-element list of it}."""
-    if cell_kind not in CELL_TYPES:
-        raise InputError(f"VTU: cells of kind {cell_kind!r} cannot be written; "
-                         f"known kinds: {sorted(CELL_TYPES)}")
+    ...) or a one-element list of it}. ``cell_kind`` may be a sequence of one
+    kind per cell (a mixed mesh): each row of ``cells`` then holds its cell's
+    nodes first (a tetrahedron's four of eight)."""
+    kinds = [cell_kind] if isinstance(cell_kind, str) else sorted(set(cell_kind))
+    for kind in kinds:
+        if kind not in CELL_TYPES:
+            raise InputError(f"VTU: cells of kind {kind!r} cannot be written; "
+                             f"known kinds: {sorted(CELL_TYPES)}")
     cells = np.asarray(cells, dtype=np.int64)
     n_cells, k = cells.shape
+    if isinstance(cell_kind, str):
+        types = np.full(n_cells, CELL_TYPES[cell_kind], dtype=np.uint8)
+        counts = np.full(n_cells, k)
+    else:
+        types = np.array([CELL_TYPES[c] for c in cell_kind], dtype=np.uint8)
+        counts = np.array([_NODES[c] for c in cell_kind])
+    connectivity = cells[np.arange(k)[None, :] < counts[:, None]]
     points = np.asarray(points, dtype=np.float64)
     sections = {
         "Points": [("Points", points)],
-        "Cells": [("connectivity", cells.ravel()),
-                  ("offsets", np.arange(1, n_cells + 1, dtype=np.int64) * k),
-                  ("types", np.full(n_cells, CELL_TYPES[cell_kind], dtype=np.uint8))],
+        "Cells": [("connectivity", connectivity),
+                  ("offsets", np.cumsum(counts).astype(np.int64)),
+                  ("types", types)],
         "PointData": [(name, _array(v)) for name, v in point_data.items()],
         "CellData": [(name, _array(v[0] if isinstance(v, list) else v))
                      for name, v in cell_data.items()],
