@@ -14,12 +14,13 @@ from signorini.errors import InputError
 def test_the_command_against_hertz_and_its_sensitivities(tmp_path):
     """The default run (quarter model, 2:3 meshes): p0 within 1 % of Hertz's, the
     contact radius within one cell, DDM = central FD of the pressures for R1, R2,
-    E1 and P to 1e-6, and the files a user looks at."""
-    assert main(["spheres", "--out", str(tmp_path)]) == 0
+    E1, E2 (--wrt: the moduli of both bodies) and P to 1e-6, and the files a user
+    looks at."""
+    assert main(["spheres", "--out", str(tmp_path), "--wrt", "R1", "R2", "E1", "E2", "P"]) == 0
     s = json.loads((tmp_path / "summary.json").read_text())
     assert abs(s["p0"]["rel_error"]) < 1e-2
     assert abs(s["a"]["error_in_cells"]) < 1.0
-    assert set(s["ddm_vs_fd_rel_diff"]) == {"R1", "R2", "E1", "P"}
+    assert set(s["ddm_vs_fd_rel_diff"]) == {"R1", "R2", "E1", "E2", "P"}
     assert max(s["ddm_vs_fd_rel_diff"].values()) < 1e-6
     assert s["analytical_comparison"] == {"valid": True, "why": []}  # the bodies are half-spaces
     for f in ("contact.csv", "contact_upper.csv", "pressure.png", "sensitivity.png", "spheres.vtu"):
@@ -63,3 +64,8 @@ def test_bad_values():
         spheres_problem({"mu": 0.3, "Q": 0.05})
     with pytest.raises(InputError, match="too small for the grid"):
         spheres_problem({"R1": 0.3})
+
+
+def test_friction_names_need_friction(tmp_path, capsys):
+    assert main(["spheres", "--out", str(tmp_path), "--wrt", "R1", "Q"]) == 2
+    assert "sensitivities to mu and Q need friction" in capsys.readouterr().err

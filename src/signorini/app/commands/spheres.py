@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import timing
+from ...errors import InputError
 from ...algorithms.newton import NewtonOptions
 from ...design.finite_differences import finite_difference
 from ...post import files as io
@@ -57,6 +58,8 @@ RTOL = 1e-10
 N_FINE = 8
 #: increments with friction (P over the first half, Q over the second), and without
 STEPS_FRICTION, STEPS = 10, 1
+#: what --wrt may name (mu and Q with friction only)
+WRT = ("R1", "R2", "E1", "E2", "P", "mu", "Q")
 
 SPHERES_SET = with_defaults({
     "R1": "radius of the lower sphere [mm]", "R2": "radius of the upper sphere [mm]",
@@ -91,6 +94,10 @@ def add_parser(sub) -> None:
                    help="the upper body's cell count at the interface relative to the lower's")
     path_options(p, steps_help=f"load increments (default {STEPS} frictionless, {STEPS_FRICTION} "
                                "with friction)")
+    p.add_argument("--wrt", nargs="+", choices=WRT, metavar="NAME",
+                   help="the parameters of the DDM sensitivities (and of the FD check), among "
+                        + ", ".join(WRT) + " (default R1 R2 E1 P, and mu Q with friction); each "
+                        "costs one more solve per increment")
     solver_options(p)
     newton_options(p, RTOL)
 
@@ -99,6 +106,7 @@ def execute(args) -> int:
     params = parse_sets(args.set, SPHERES_SET)
     s = run(args.out, params, refine=args.refine, n_fine=args.n_fine, ratio=args.ratio,
             steps=args.steps, fd_check=not args.no_fd, solver=args.solver,
+            sensitivities=list(dict.fromkeys(args.wrt)) if args.wrt else None,
             options=NewtonOptions(rtol=args.rtol, max_iter=args.max_iter), force_size=args.force_size)
     zone = (f", c/a = {s['c_over_a']['computed']:.3f} (Cattaneo-Mindlin "
             f"{s['c_over_a']['analytical']:.3f})" if isinstance(s.get("c_over_a"), dict) else "")
@@ -132,6 +140,9 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = N_FIN
     steps = steps or (STEPS_FRICTION if friction else STEPS)
     if sensitivities is None:
         sensitivities = ["R1", "R2", "E1", "P"] + (["mu", "Q"] if friction else [])
+    elif not friction and {"mu", "Q"} & set(sensitivities):
+        raise InputError("spheres: sensitivities to mu and Q need friction (--set mu=0.3 --set "
+                         "Q=0.015); without it the path has no tangential force")
     hv = {k: v[k] for k in ("P", "R1", "R2", "E1", "E2", "nu1", "nu2", "mu", "Q")}
     an = analytical(**hv)
     X, sets = pb.mesh.nodes, pb.mesh.node_sets
