@@ -404,7 +404,7 @@ def _lapack_ready() -> None:
     (segmentation fault) if it is the first such program of the process. JAX's
     own loader of exported programs does the same (``_ensure_backends_initialized``)."""
     try:
-        from jax._src.lax.linalg import initialize_lapack  # noqa: PLC0415
+        from jax._src.lax.linalg import initialize_lapack  # noqa: PLC0415  (lazy: private, on a load only)
         initialize_lapack()
     except Exception:  # noqa: BLE001  (another JAX: lower one such operation instead)
         jax.block_until_ready(jax.numpy.linalg.det(jax.numpy.eye(2)))

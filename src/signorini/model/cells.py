@@ -9,8 +9,68 @@ or None)``, and the material values ``mp`` are shared by every cell.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import InputError
 from ..fem import element, solid
+from ..fem.element import FBAR, STANDARD
 from .chunks import Chunked
+
+
+class CellGroup(NamedTuple):
+    """Cells that share their element kernels: one kind of cell (its kinematics)
+    and one material law (with each cell's own values), with their element
+    formulation. A model has one, or (a mixed mesh, bodies of several laws) one
+    per kind and law (docs/theory.md §12.2)."""
+
+    kin: object        #: kinematics of the cells' kind
+    idx: np.ndarray    #: the cells
+    law: object        #: the material whose kernels they take
+    form: object       #: element formulation
+
+    @property
+    def n_gauss(self) -> int:
+        return self.kin.n_gauss
+
+    @property
+    def n_nodes(self) -> int:
+        return self.kin.cell.n_nodes if self.kin.dim == 3 else 4
+
+    @property
+    def n_state(self) -> int:
+        return int(self.law.n_state)
+
+
+def cell_groups(problem, kinematics, material, formulation) -> list[CellGroup]:
+    """The groups of a problem's cells (``material`` the model's, bound to the
+    mesh): by kind of cell (a mixed 3-D mesh) and by material law (Bodies of
+    several laws). With one group, the problem's kinematics, material and
+    formulation as they are."""
+    mesh = problem.mesh
+    n = len(mesh.cells)
+    kinds = ([(kinematics, np.arange(n))] if kinematics.dim == 2 or not mesh.mixed else
+             [(solid.Solid3D(c), idx) for c, idx in mesh.groups()])
+    several = getattr(material, "per_cell", False) and len(material.bodies.laws) > 1
+    laws = material.law_index() if several else [(material, np.arange(n))]
+    if len(kinds) * len(laws) == 1:
+        return [CellGroup(kinematics, np.arange(n), material, formulation)]
+    groups = []
+    for kin, ik in kinds:
+        for law, il in laws:
+            idx = np.intersect1d(ik, il)
+            if not idx.size:
+                continue
+            form = problem.formulation
+            if form is None:
+                form = FBAR if law.n_state and (kin.dim == 2 or kin.cell.fbar) else STANDARD
+            if not form.linear and not law.finite_strain:
+                raise InputError(f"the {form.name} formulation is for finite-strain materials; the "
+                                 f"{type(law).__name__} bodies are small-strain: leave the "
+                                 "formulation to its default (F-bar only where a law has history)")
+            groups.append(CellGroup(kin, idx, law, form))
+    return groups
 
 
 def element_family(kinematics):

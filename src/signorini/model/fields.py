@@ -86,12 +86,13 @@ class ModelFields:
         ratio = None
         if self.n_state and self.material.yield_ratio is not None:
             mp = self.material.values(params)
-            form, mat = self.formulation, self.material
-            ratio = self._over_cells(lambda ue, Xe, he, m, kin: self.fem.element_yield_ratio(
-                ue, Xe, mat, m, he, kin, form), u, X, self._material_history(state_n), mp)
-            for kin, idx in self.groups:  # a tetrahedron's padded points: its own value,
-                if kin.n_gauss < ratio.shape[1]:  # not 0 ("on the yield surface")
-                    ratio = ratio.at[idx, kin.n_gauss:].set(ratio[idx, :1])
+            # (a law without a yield surface: never on it)
+            ratio = self._over_cells(lambda ue, Xe, he, m, g: self.fem.element_yield_ratio(
+                ue, Xe, g.law, m, he, g.kin, g.form) if g.law.yield_ratio is not None else
+                jnp.full(g.n_gauss, jnp.inf), u, X, self._material_history(state_n), mp)
+            for g in self.groups:  # a tetrahedron's padded points: its own value,
+                if g.n_gauss < ratio.shape[1]:  # not 0 ("on the yield surface")
+                    ratio = ratio.at[g.idx, g.n_gauss:].set(ratio[g.idx, :1])
         return tuple(out), ratio
 
     def stresses(self, w, params, state_n=None):
@@ -101,9 +102,8 @@ class ModelFields:
         u, _ = self.split(w)
         mp = self.material.values(params)
         hn = self._material_history(state_n)
-        form, mat = self.formulation, self.material
-        return self._over_cells(lambda ue, Xe, he, m, kin: self.fem.element_stress(
-            ue, Xe, mat, m, he, kin, form), u, X, hn, mp)
+        return self._over_cells(lambda ue, Xe, he, m, g: self.fem.element_stress(
+            ue, Xe, g.law, m, he, g.kin, g.form), u, X, hn, mp)
 
     def gauss_mean(self, a) -> np.ndarray:
         """(n_cells, ...) the mean over each cell's own Gauss points of a
@@ -111,6 +111,6 @@ class ModelFields:
         one point, not the padding)."""
         a = np.asarray(a)
         out = np.empty((a.shape[0],) + a.shape[2:])
-        for kin, idx in self.groups:
-            out[idx] = a[idx, :kin.n_gauss].mean(axis=1)
+        for g in self.groups:
+            out[g.idx] = a[g.idx, :g.n_gauss].mean(axis=1)
         return out

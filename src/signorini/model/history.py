@@ -70,8 +70,14 @@ class ModelHistory:
         w = jnp.asarray(w)
         h0 = None
         if self.n_state:
-            h0 = jnp.broadcast_to(self.material.initial_state(),
-                                  (len(self.conn), self.kinematics.n_gauss, self.n_state))
+            shape = (len(self.conn), max(g.n_gauss for g in self.groups), self.n_state)
+            if not self.mixed:
+                h0 = jnp.broadcast_to(self.material.initial_state(), shape)
+            else:  # each group's own virgin state, the rest of the rows zero
+                h0 = jnp.zeros(shape)
+                for g in self.groups:
+                    if g.n_state:
+                        h0 = h0.at[g.idx, :g.n_gauss, :g.n_state].set(g.law.initial_state())
         contact = self._update_contact(w, params, 0.0, (w, (None,) * len(self.surfaces), None))[1]
         return (w, contact, h0)
 

@@ -36,7 +36,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fem import element
-from ..fem.solid import Solid3D
 from .._programs import Program
 from .._jax import jax, jnp, to_device
 from ..fem.assembly import SparsityPattern
@@ -46,7 +45,7 @@ from ..errors import InputError
 from ..contact.obstacles import Linearized
 from .fields import ModelFields
 from .geometry import NODES, ModelGeometry  # noqa: F401  (NODES: re-exported)
-from .cells import CellKernels, element_family
+from .cells import CellKernels, cell_groups, element_family
 from .contact_nodes import ModelContactNodes
 from .elements import ModelElements
 from .history import ModelHistory
@@ -154,10 +153,10 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         # for every mesh and run over chunks of cells and nodes
         # (contact pairs and per-body materials: whole-mesh programs only, the kinds'
         # programs take one material and no patches)
-        # the kinds of cell with the kernels' kinematics of each: one, or a mixed
-        # mesh's hexahedra and tetrahedra (whole-mesh programs only, a map per kind)
-        self.groups = ([(self.kinematics, np.arange(len(self.conn)))] if self.dim == 2 else
-                       [(Solid3D(c), idx) for c, idx in p.mesh.groups()])
+        # the cells that share element kernels: one group, or one per kind of cell (a
+        # mixed mesh) and material law (bodies of several laws), each mapped over its
+        # own cells by the whole-mesh programs
+        self.groups = cell_groups(p, self.kinematics, self.material, self.formulation)
         self.mixed = len(self.groups) > 1
         self.by_kind = (len(self.conn) > self.WHOLE_MESH_UP_TO
                         and all(s.patches is None for s in layout.surfaces)
@@ -344,11 +343,11 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
         u, _ = self.split(w)
         mp = self.material.values(params)
         hn = self._material_history(state_n)
-        form, mat, fem = self.formulation, self.material, self.fem
+        fem = self.fem
         if tangent:
-            f = lambda ue, Xe, he, m, kin: fem.element_residual_tangent(ue, Xe, mat, m, he, kin, form)
+            f = lambda ue, Xe, he, m, g: fem.element_residual_tangent(ue, Xe, g.law, m, he, g.kin, g.form)
         else:
-            f = lambda ue, Xe, he, m, kin: fem.element_update(ue, Xe, mat, m, he, kin, form)
+            f = lambda ue, Xe, he, m, g: fem.element_update(ue, Xe, g.law, m, he, g.kin, g.form)
         return self._over_cells(f, u, X, hn, mp)
 
     #: element kernels run over chunks of CELL_CHUNK cells on meshes of at least
@@ -360,31 +359,33 @@ class Model(ModelGeometry, ModelChecks, ModelHistory, ModelStiffness, ModelField
     CHUNKED_FROM = 65536
 
     def _over_cells(self, f, u, X, hn, mp):
-        """f(u_e, X_e, h_e, mp_e, kin) mapped over the cells (h_e None without
-        history; mp_e the material values, each cell's own with per-body materials,
-        :class:`~signorini.materials.Bodies`; kin the kinematics of the cell's
-        kind). A mixed mesh maps each kind over its own cells (a tetrahedron's
-        nodes and Gauss points are the first of its row) and pads every output to
-        the hexahedron's shape with zeros: a tetrahedron's forces and tangent add
-        nothing at its repeated node, its history beyond its one point is unused."""
+        """f(u_e, X_e, h_e, mp_e, g) mapped over the cells of every group g
+        (:class:`~signorini.model.cells.CellGroup`: its kinematics, law and
+        formulation; h_e None without history; mp_e the material values, each
+        cell's own with per-body materials, :class:`~signorini.materials.Bodies`).
+        Several groups (a mixed mesh, bodies of several laws): each over its own
+        cells (a tetrahedron's nodes and Gauss points the first of its row, a law's
+        history the first of the largest one's), every output padded with zeros
+        to the largest group's shape: a tetrahedron's forces and tangent add
+        nothing at its repeated node, the history beyond a cell's own is unused."""
         if not self.mixed:
-            return self._map_cells(functools.partial(f, kin=self.kinematics), u, X,
+            return self._map_cells(functools.partial(f, g=self.groups[0]), u, X,
                                    np.asarray(self.conn), hn, mp)
         per_cell = getattr(self.material, "per_cell", False)
         parts = []
-        for kin, idx in self.groups:
-            h = None if hn is None else hn[idx, :kin.cell.n_gauss]
-            m = jax.tree_util.tree_map(lambda a, idx=idx: a[idx], mp) if per_cell else mp
-            parts.append(self._map_cells(functools.partial(f, kin=kin), u, X,
-                                         np.asarray(self.conn)[idx, :kin.cell.n_nodes], h, m))
+        for g in self.groups:
+            h = None if hn is None or not g.n_state else hn[g.idx, :g.n_gauss, :g.n_state]
+            m = jax.tree_util.tree_map(lambda a, idx=g.idx: a[idx], mp) if per_cell else mp
+            parts.append(self._map_cells(functools.partial(f, g=g), u, X,
+                                         np.asarray(self.conn)[g.idx, :g.n_nodes], h, m))
         n = len(self.conn)
 
         def combine(*outs):
             shape = tuple(max(sizes) for sizes in zip(*(o.shape[1:] for o in outs)))
             whole = jnp.zeros((n,) + shape, outs[0].dtype)
-            for (_, idx), o in zip(self.groups, outs):
+            for g, o in zip(self.groups, outs):
                 pad = [(0, 0)] + [(0, b - a) for a, b in zip(o.shape[1:], shape)]
-                whole = whole.at[idx].set(jnp.pad(o, pad))
+                whole = whole.at[g.idx].set(jnp.pad(o, pad))
             return whole
         return jax.tree_util.tree_map(combine, *parts)
 

@@ -110,8 +110,8 @@ def _fields(solution, i: int) -> tuple:
         kind = "quad"
     elif m.mixed:  # one kind per cell
         kind = np.empty(len(m.conn), dtype=object)
-        for kin, idx in m.groups:
-            kind[idx] = kin.cell.name
+        for g in m.groups:
+            kind[g.idx] = g.kin.cell.name
     else:
         kind = m.kinematics.cell.name  # "hexahedron" or "tetra"
     conn = np.asarray(m.conn)
