@@ -56,6 +56,9 @@ _WHERE = {
     **dict.fromkeys(("DDM", "Adjoint", "FiniteDifferences"), "sensitivity.methods"),
 }
 
+#: public modules, reached as attributes (``sg.responses.contact_force(...)``)
+_SUBPACKAGES = ("responses",)
+
 __all__ = [
     # the problem: mesh (2-D, 3-D, from a file), kinematics (2-D only), element, material,
     # supports and loads, contact (2-D obstacles, 3-D obstacles, laws, pairs of bodies)
@@ -70,8 +73,8 @@ __all__ = [
     "solve", "NewtonOptions", "Start", "Solution",
     # derivatives
     "DDM", "Adjoint", "FiniteDifferences", "gradient", "Gradient", "finite_difference",
-    # optimisation with those derivatives
-    "Objective", "minimize",
+    # what to differentiate (sg.responses.contact_force, reaction, ...), optimisation with it
+    "responses", "Objective", "minimize",
     # results
     "write_vtu", "write_pvd",
     # errors and warnings
@@ -87,6 +90,9 @@ _compat.install()
 def __getattr__(name):
     """A public name, imported from its module when first asked for; or one of the
     0.1 module names (``sg.io``, ...): the new module, with a DeprecationWarning."""
+    if name in _SUBPACKAGES:  # sg.responses: the module itself
+        value = globals()[name] = _importlib.import_module(f"{__name__}.{name}")
+        return value
     where = _WHERE.get(name)
     if where is None:
         return _compat.module_attribute(name)

@@ -245,7 +245,7 @@ class Solution:
         * In 3-D: ``normal`` (the obstacle's unit normal n', into the body),
           ``t1``, ``t2`` (the tangent basis) and ``traction`` (the contact force
           on the body per reference area, a vector: what the supports balance),
-          each (nc, 3).
+          each (nc, 3); ``dtraction_d<name>`` its DDM sensitivities.
         """
         m = self.model
         s = self._surface(surface)
@@ -273,7 +273,35 @@ class Solution:
         inc = self._inc(i)
         n, t1, t2, f = (np.asarray(a) for a in self.model.frames(
             to_device(inc.w), self.jax_params, inc.t, self.state_before(i)[0], surface))
-        return {"normal": n, "t1": t1, "t2": t2, "traction": f}
+        out = {"normal": n, "t1": t1, "t2": t2, "traction": f}
+        if self.names:  # the traction vectors' DDM sensitivities, (nc, 3) each
+            m = self.model
+            _, d = self.history_response(lambda w, p, t, st: m.contact_frames(w, p, t, st, surface)[3],
+                                         i, key=("traction", surface))
+            out.update({f"dtraction_d{name}": np.asarray(v) for name, v in d.items()})
+        return out
+
+    def switch_points(self) -> list[dict]:
+        """Every switch point of the path (docs/theory.md §11), a row per increment,
+        kind and contact surface: ``{"increment", "t", "kind", "surface", "nodes"}``
+        for the contact kinds (``weakly_active``: closed without pressure;
+        ``stick_slip``: on the Coulomb cone; ``master_end``, ``partner_change``:
+        a pair's master surface ends or changes under a node), ``{"increment",
+        "t", "kind": "elastic_plastic", "surface": None, "cells"}`` for cells with
+        Gauss points on the yield surface. Empty lists are left out."""
+        rows = []
+        for k, inc in enumerate(self.increments):
+            for kind, found in (inc.switches or {}).items():
+                if kind == "elastic_plastic":
+                    if len(found):
+                        rows.append({"increment": k, "t": float(inc.t), "kind": kind,
+                                     "surface": None, "cells": list(found)})
+                    continue
+                for surface, nodes in enumerate(found):
+                    if len(nodes):
+                        rows.append({"increment": k, "t": float(inc.t), "kind": kind,
+                                     "surface": surface, "nodes": list(nodes)})
+        return rows
 
     def _directions(self, i: int):
         """(w_dot (k, n_dof), unit tangents e) of increment i's sensitivities."""

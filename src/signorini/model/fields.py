@@ -31,23 +31,44 @@ class ModelFields:
     def contact_frames(self, w, params, t, state_n, surface: int = 0):
         """Pure function (3-D): per node of a surface (each (nc, 3)) the obstacle's
         normal n' at the node, the tangent basis (t1, t2) of its tangential
-        multipliers, and the contact force on the body per reference area (the
-        node's contact residual rows, -r_x / A_S: what balances the supports;
-        with linearised kinematics along the body's reference normal)."""
+        multipliers, and the contact force on the body per reference area
+        (:meth:`contact_forces` / A_S: what balances the supports; with linearised
+        kinematics along the body's reference normal)."""
+        s = self.surfaces[surface]
+        X = self.reference(params)
+        u, lams = self.split(w)
+        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
+        h = self._node_history(surface, state_n)
+
+        def frame(xs, hs, X0):
+            n = self.obstacle_at(s, X0).normal(xs, geo)
+            e = hs[1] if hs is not None else jnp.eye(3)[jnp.argmin(jnp.abs(X0[1]))]
+            return (n,) + tangent_basis(n, e)
+        frames = jax.vmap(frame, (0, 0 if h is not None else None, 0))(x, h, Xs)
+        return frames + (self.contact_forces(w, params, t, state_n, surface) / A[:, None],)
+
+    def contact_forces(self, w, params, t, state_n=None, surface: int = 0):
+        """Pure function: (nc, dim) the contact force on the body at each node of a
+        surface (minus its contact residual rows: what balances the supports; in
+        axisymmetry over the whole circumference). For a pair, the force on the
+        slave body at its nodes, gathered from every slave node's patch (the master
+        body receives the opposite). ``state_n``: the state before the increment,
+        needed with friction."""
         s = self.surfaces[surface]
         X = self.reference(params)
         u, lams = self.split(w)
         x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
         meth = s.contact.method
         h = self._node_history(surface, state_n)
-
-        def frame(xs, ls, a, hs, X0):
-            ob = self.obstacle_at(s, X0)
-            n = ob.normal(xs, geo)
-            e = hs[1] if hs is not None else jnp.eye(3)[jnp.argmin(jnp.abs(X0[1]))]
-            r = meth.residual(xs, ls, a, geo, ob, cp, hs)
-            return (n,) + tangent_basis(n, e) + (-r[:3] / a,)
-        return jax.vmap(frame, (0, 0, 0, 0 if h is not None else None, 0))(x, lam, A, h, Xs)
+        d = self.dim
+        rows = jax.vmap(lambda xs, ls, a, hs, X0: meth.residual(
+            xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs), (0, 0, 0, 0 if h is not None else None, 0))(
+            x, lam, A, h, Xs)
+        if s.patches is None:
+            return -rows[:, :d]
+        pn = s.patches.nodes  # (nc, P): a patch's rows, scattered as the residual is
+        f = -rows[:, :pn.shape[1] * d].reshape(pn.shape + (d,))
+        return jnp.zeros((self.n_nodes, d)).at[pn].add(f)[s.nodes]
 
     def contact_status(self, w, params, t, state_n, surface: int = 0):
         """Pure function: per-node (status code, slip increment g_T) of a friction
