@@ -16,6 +16,12 @@ A response is called with a model (it gives the traceable ``fn(w, params, t,
 state_n)`` that the derivatives differentiate) or with a solution (its value at
 the last increment, what :func:`~signorini.finite_difference` differences).
 
+A fit to a measured history is :func:`misfit` summed over the path::
+
+    fit = sg.responses.misfit(sg.responses.reaction("top", 2), t_measured, f_measured)
+    objective = sg.Objective(problem, ["E", "mu"], fit, steps=len(t_measured), increments="all")
+    result = sg.minimize(objective, [E0, mu0])
+
 Forces are those on the body: in plane strain per unit thickness, in
 axisymmetry over the whole circumference (its radial component sums the nodes'
 radial forces), in 3-D vectors in the global frame (the contact force is the sum
@@ -27,6 +33,7 @@ their derivatives are those of the branch the solve took (docs/theory.md §11).
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 
 import numpy as np
@@ -39,7 +46,7 @@ from .errors import InputError
 _STICK = STATUS_NAMES.index("stick")
 
 __all__ = ["Response", "contact_force", "reaction", "displacement", "contact_area",
-           "max_pressure", "pressure_norm", "contact_work", "stick_area"]
+           "max_pressure", "pressure_norm", "contact_work", "stick_area", "misfit"]
 
 
 class Response:
@@ -216,3 +223,32 @@ def stick_area(surface: int = 0) -> Response:
         return fn
     return Response(f"stick_area[{surface}]", build)
 
+
+
+def misfit(response: Response, times, values, weights=None) -> Response:
+    """w(t) (r - m(t))^2 of a response r against a measured curve m(t) (the
+    load factors ``times``, increasing, and the measured ``values``, interpolated
+    linearly; ``weights`` w at the same times, default 1): summed over the
+    increments (``gradient(..., increments="all")``, ``Objective(...,
+    increments="all")``) it is the least-squares misfit of the whole history. Put
+    the increments at the measured times (equal increments: times k / n)."""
+    t = np.asarray(times, dtype=float).ravel()
+    v = np.asarray(values, dtype=float).ravel()
+    wts = np.ones_like(t) if weights is None else np.asarray(weights, dtype=float).ravel()
+    if not (t.size == v.size == wts.size) or t.size < 1:
+        raise InputError(f"misfit: times, values (and weights) need one entry each per measured "
+                         f"point, got {t.size}, {v.size}, {wts.size}")
+    if np.any(np.diff(t) <= 0) or not np.all(np.isfinite(np.concatenate([t, v, wts]))):
+        raise InputError("misfit: the times must increase and every value be a finite number")
+    if np.any(wts < 0):
+        raise InputError("misfit: weights must be >= 0")
+    digest = hashlib.blake2b(np.concatenate([t, v, wts]).tobytes(), digest_size=8).hexdigest()
+
+    def build(model):
+        r = response(model)
+
+        def fn(w, p, time, s):
+            m = jnp.interp(time, t, v)
+            return jnp.interp(time, t, wts) * (r(w, p, time, s) - m) ** 2
+        return fn
+    return Response(f"misfit[{response.name},{digest}]", build)

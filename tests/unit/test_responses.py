@@ -127,3 +127,40 @@ def test_traction_vectors_sensitivities_and_switch_points():
         assert r["nodes"] == sol.increments[r["increment"]].switches[r["kind"]][r["surface"]]
     assert len(rows) == sum(len(n) > 0 for inc in sol.increments for k, v in inc.switches.items()
                             if k != "elastic_plastic" for n in v)
+
+
+def test_a_fit_to_a_measured_history():
+    """Objective over the path: the block's modulus and Poisson's ratio
+    (axisymmetric sphere, with friction), fitted by Objective(increments="all")
+    and minimize to a synthetic history of the block's displacement (three
+    increments), come back to the true values; the gradient of a misfit of two
+    histories (displacement and contact work): DDM = adjoint = central
+    differences of the objective."""
+    pb = hertz3d_problem({"mu": 0.3}, n_fine=8, size=6.0, axisymmetric=True)
+    true = np.array([pb.params["E"], pb.params["nu"]])
+    u, work = rs.displacement(0, 1), rs.contact_work()
+    sol = sg.solve(pb, steps=3, options=TIGHT)
+    times = [1 / 3, 2 / 3, 1.0]
+    u_m, w_m = u.path(sol), work.path(sol)
+    fit_u = rs.misfit(u, times, u_m, weights=1 / u_m ** 2)  # relative misfits
+    fit_w = rs.misfit(work, times, w_m, weights=1 / w_m ** 2)
+    assert fit_u(sol) == 0.0
+    x = np.array([80.0, 0.25])
+    start = pb.with_params(E=x[0], nu=x[1])
+
+    class Both(rs.Response):  # the two misfits, one objective
+        def __init__(self):
+            super().__init__("both", lambda m: (lambda w, p, t, s: fit_u(m)(w, p, t, s) + fit_w(m)(w, p, t, s)))
+
+    objs = {k: sg.Objective(start, ["E", "nu"], Both(), steps=3, increments="all", options=TIGHT, method=meth)
+            for k, meth in (("ddm", sg.DDM()), ("adjoint", sg.Adjoint()))}
+    g_ddm, g_adj = objs["ddm"].jac(x), objs["adjoint"].jac(x)
+    assert g_adj == pytest.approx(g_ddm, rel=1e-10)
+    for k, h in enumerate((1e-4, 1e-6)):
+        e = np.zeros(2)
+        e[k] = h
+        fd = (objs["ddm"].fun(x + e) - objs["ddm"].fun(x - e)) / (2 * h)
+        assert fd == pytest.approx(g_ddm[k], rel=1e-6)
+    res = sg.minimize(sg.Objective(start, ["E", "nu"], fit_u, steps=3, increments="all", options=TIGHT),
+                      x, method="BFGS", gtol=1e-10)
+    assert res.x == pytest.approx(true, rel=1e-6), res.message

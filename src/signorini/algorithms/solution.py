@@ -366,8 +366,11 @@ class Solution:
             val_fn, jvp_fn = cache[(key, with_state)]
         else:
             # kept between processes only for the package's own responses, whose code
-            # the programs' key covers; the caller's key names the function (docstring)
-            own = key is not None and getattr(fn, "__module__", "").startswith("signorini.")
+            # the programs' key covers; the caller's key names the function (docstring),
+            # but an objective's own numbering (Objective without a response_key) names
+            # it in this process only
+            own = (key is not None and getattr(fn, "__module__", "").startswith("signorini.")
+                   and not (isinstance(key, tuple) and key[:1] == ("signorini.optimize",)))
             program = self.model.program if own else (lambda f, name: Program(f, name))
             name = f"response:{key!r}:{with_state}"
             val_fn = program(fn, name)

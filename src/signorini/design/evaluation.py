@@ -15,7 +15,7 @@ import numpy as np
 from ..model import checks
 from ..sensitivity.methods import DDM, Adjoint
 from ..errors import ConvergenceError, InputError, SignoriniWarning, SolverError
-from .gradient import adjoint_gradient
+from .gradient import adjoint_gradient, selected_increments, with_state
 from .history import Evaluation, append_rows
 from ..sensitivity import nonsmooth
 from ..algorithms.stepping import solve
@@ -130,14 +130,19 @@ class ObjectiveEvaluation:
         """The response at a converged solve and its gradient (DDM: from the solve;
         adjoint: one backward pass for all names) into ``out``."""
         names = self.names
-        val, dv = sol.response(self._fn(sol.model), self.increment, with_sensitivities=ddm,
-                               key=self.key)
-        if np.size(val) != 1:
-            raise InputError("the response must return a scalar, got an array of shape "
-                             f"{np.shape(val)}")
+        fn = with_state(self._fn(sol.model))
+        idx = selected_increments(self.increments, len(sol.increments))
+        val, dv = 0.0, {n: 0.0 for n in names}
+        for i in idx:  # the response summed over the increments (one: the usual case)
+            v, d = sol.evaluate(fn, i, ddm, self.key, with_state=True)
+            if np.size(v) != 1:
+                raise InputError("the response must return a scalar, got an array of shape "
+                                 f"{np.shape(v)}")
+            val = val + v
+            dv = {n: dv[n] + d[n] for n in d} if ddm else dv
         if with_grad and not ddm:  # adjoint: one backward pass for all names
             try:
-                dv = adjoint_gradient(sol, self._fn(sol.model), names, increments=[self.increment],
+                dv = adjoint_gradient(sol, self._fn(sol.model), names, increments=idx,
                                       solver=sol.linear_solver or self.solver)[1]
             except SolverError as e:
                 out.update(status="failed", reason=f"adjoint: {e}",

@@ -111,6 +111,10 @@ class Objective(ObjectiveEvaluation):
         response_key: key under which the compiled response is cached on the
             model (default: a key unique to this objective).
         increment: which converged increment the response is evaluated at (-1: the last).
+        increments: instead, ``"all"`` or a list of increment indices: the response
+            summed over them (a misfit to a measured history:
+            :func:`signorini.responses.misfit` over ``"all"``), with the gradient of the
+            sum (DDM or one adjoint pass).
         method: :class:`~signorini.DDM` (default: one solve with sensitivities per
             point), :class:`~signorini.Adjoint` (one solve and one backward pass per
             point, whatever the number of design parameters) or
@@ -139,7 +143,7 @@ class Objective(ObjectiveEvaluation):
 
     def __init__(self, problem, wrt: Sequence[str] | None = None, response: Callable | None = None, *,
                  method=None, steps: int = 1, options: NewtonOptions | None = None, solver="auto",
-                 response_key=None, increment: int = -1, failure: str = "penalty",
+                 response_key=None, increment: int = -1, increments=None, failure: str = "penalty",
                  failure_value: float | None = None, validate: Callable | None = None,
                  factory: bool | None = None, history=None, append: bool = False,
                  label: str = "opt", **deprecated):
@@ -176,6 +180,10 @@ class Objective(ObjectiveEvaluation):
         self.options = options if options is not None else NewtonOptions()
         self.solver = solver
         self.increment = increment
+        self.increments = [increment] if increments is None else increments
+        if isinstance(self.increments, str) and self.increments not in ("all", "last"):
+            raise InputError(f"increments must be 'all', 'last' or a list of increment indices, got "
+                             f"{increments!r}")
         self.method = method
         #: ``"ddm"``, ``"adjoint"`` or ``"fd"``: the name of ``method``
         self.gradient_mode = {DDM: "ddm", Adjoint: "adjoint", FiniteDifferences: "fd"}[type(method)]
@@ -183,7 +191,10 @@ class Objective(ObjectiveEvaluation):
         self.failure_value = None if failure_value is None else float(failure_value)
         self.validate = validate
         self.label = label
-        self.key = response_key if response_key is not None else ("signorini.optimize", next(_UID))
+        if response_key is None:  # a public response is named by what it computes
+            response_key = (("response", response.name) if hasattr(response, "of")
+                            else ("signorini.optimize", next(_UID)))
+        self.key = response_key
         self.records: list[Evaluation] = []
         self.warnings: list[str] = []
         self._seen_logs: set = set()
