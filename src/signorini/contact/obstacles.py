@@ -22,6 +22,53 @@ def _point(spec, params):
     return jnp.stack([jnp.asarray(resolve(s, params), dtype=float) for s in spec])
 
 
+def motion_legs(motion, dim: int, what: str) -> tuple:
+    """An obstacle's ``motion`` as it is kept: a vector of ``dim`` parameter specs
+    (the obstacle moves by t times it), or legs ((vector, ramp), ...), each
+    vector moved along its ramp of t (:class:`~signorini.Ramp`,
+    :class:`~signorini.Table` or a function of t): press then slide
+    ``(((0, "-d"), Ramp(0, 0.5)), (("s", 0), Ramp(0.5, 1)))``, load and unload
+    ``(((0, "-d"), Table((0, 0.5, 1), (0, 1, 0))),)``."""
+    if motion is None:
+        return None
+    items = tuple(motion)
+    legs = bool(items) and all(isinstance(m, (tuple, list)) and len(m) == 2 and callable(m[1])
+                               for m in items)
+    if not legs:
+        if len(items) != dim or any(isinstance(m, (tuple, list)) for m in items):
+            raise InputError(f"{what}: motion must be {dim} values (the obstacle moves by t times "
+                             f"them) or legs ((vector, ramp), ...), got {motion!r}")
+        return items
+    out = []
+    for vec, ramp in items:
+        vec = tuple(vec)
+        if len(vec) != dim:
+            raise InputError(f"{what}: each leg of the motion needs a vector of {dim} values, got "
+                             f"{vec!r}")
+        out.append((vec, ramp))
+    return tuple(out)
+
+
+def is_legs(motion) -> bool:
+    return bool(motion) and isinstance(motion[0], tuple)
+
+
+def motion_specs(motion) -> tuple:
+    """The parameter specs of a motion (vector or legs)."""
+    if not motion:
+        return ()
+    return tuple(s for vec, _ in motion for s in vec) if is_legs(motion) else tuple(motion)
+
+
+def shift_at(motion, params, t, dim: int):
+    """The obstacle's translation from its place at t = 0 at the load factor t."""
+    if motion is None:
+        return jnp.zeros(dim)
+    if is_legs(motion):
+        return sum((ramp(t) - ramp(0.0)) * _point(vec, params) for vec, ramp in motion)
+    return t * _point(motion, params)
+
+
 @dataclass(frozen=True)
 class Circle:
     """Rigid circle of radius ``radius`` and centre ``centre`` in the (x, y) plane;
@@ -30,7 +77,8 @@ class Circle:
     centre on the axis (r = 0) makes it a sphere, and one off the axis a torus. In
     3-D use :class:`~signorini.Sphere` or :class:`~signorini.Cylinder`.
 
-    The centre moves as ``centre + t * motion`` (t = load factor).
+    The centre moves as ``centre + t * motion`` (t = load factor), or along
+    legs of the motion, each a vector times its ramp (:func:`motion_legs`).
     The slip coordinate is s = radius * theta with theta measured from the
     downward vertical (branch cut at the top of the cylinder).
     """
@@ -39,11 +87,14 @@ class Circle:
     centre: tuple[Spec, Spec] = (0.0, "R")
     motion: tuple[Spec, Spec] = (0.0, 0.0)
 
+    def __post_init__(self):
+        object.__setattr__(self, "motion", motion_legs(self.motion, 2, "Circle"))
+
     def specs(self):
-        return (self.radius, *self.centre, *self.motion)
+        return (self.radius, *self.centre, *motion_specs(self.motion))
 
     def geometry(self, params, t):
-        shift = t * _point(self.motion, params)
+        shift = shift_at(self.motion, params, t, 2)
         return {"R": jnp.asarray(resolve(self.radius, params), dtype=float),
                 "c": _point(self.centre, params) + shift, "shift": shift}
 
@@ -74,7 +125,8 @@ class Circle:
 
 @dataclass(frozen=True)
 class Line:
-    """Rigid straight die through ``point`` (moving as ``point + t * motion``),
+    """Rigid straight die through ``point`` (moving as ``point + t * motion``, or
+    along legs: :func:`motion_legs`),
     with unit normal ``normal`` pointing into the body (normalised on use), in the
     (x, y) plane. In plane strain it is a flat die along z; in axisymmetry, in the
     (r, z) half-plane, a normal along z makes it a flat punch face and one along r
@@ -86,13 +138,16 @@ class Line:
     normal_vector: tuple[Spec, Spec] = (0.0, -1.0)
     motion: tuple[Spec, Spec] = (0.0, 0.0)
 
+    def __post_init__(self):
+        object.__setattr__(self, "motion", motion_legs(self.motion, 2, "Line"))
+
     def specs(self):
-        return (*self.point, *self.normal_vector, *self.motion)
+        return (*self.point, *self.normal_vector, *motion_specs(self.motion))
 
     def geometry(self, params, t):
         n = _point(self.normal_vector, params)
         n = n / jnp.sqrt(n @ n)
-        shift = t * _point(self.motion, params)
+        shift = shift_at(self.motion, params, t, 2)
         return {"x0": _point(self.point, params) + shift, "n": n, "shift": shift}
 
     def check(self, params):

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from .._jax import jax, jnp
 from ..errors import InputError
 from ..params import Spec, resolve
+from .obstacles import motion_legs, motion_specs, shift_at
 
 
 def _vector(spec, params):
@@ -71,11 +72,14 @@ class Plane(_Surface):
     normal_vector: tuple[Spec, Spec, Spec] = (0.0, 0.0, -1.0)
     motion: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
 
+    def __post_init__(self):
+        object.__setattr__(self, "motion", motion_legs(self.motion, 3, type(self).__name__))
+
     def specs(self):
-        return (*self.point, *self.normal_vector, *self.motion)
+        return (*self.point, *self.normal_vector, *motion_specs(self.motion))
 
     def geometry(self, params, t):
-        shift = t * _vector(self.motion, params)
+        shift = shift_at(self.motion, params, t, 3)
         return {"c": _vector(self.point, params) + shift,
                 "n": _unit(_vector(self.normal_vector, params)), "shift": shift}
 
@@ -105,11 +109,14 @@ class Sphere(_Surface):
     centre: tuple[Spec, Spec, Spec] = (0.0, 0.0, "R")
     motion: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
 
+    def __post_init__(self):
+        object.__setattr__(self, "motion", motion_legs(self.motion, 3, type(self).__name__))
+
     def specs(self):
-        return (self.radius, *self.centre, *self.motion)
+        return (self.radius, *self.centre, *motion_specs(self.motion))
 
     def geometry(self, params, t):
-        shift = t * _vector(self.motion, params)
+        shift = shift_at(self.motion, params, t, 3)
         return {"R": jnp.asarray(resolve(self.radius, params), dtype=float),
                 "c": _vector(self.centre, params) + shift, "shift": shift}
 
@@ -142,11 +149,14 @@ class Cylinder(_Surface):
     axis: tuple[Spec, Spec, Spec] = (0.0, 1.0, 0.0)
     motion: tuple[Spec, Spec, Spec] = (0.0, 0.0, 0.0)
 
+    def __post_init__(self):
+        object.__setattr__(self, "motion", motion_legs(self.motion, 3, type(self).__name__))
+
     def specs(self):
-        return (self.radius, *self.centre, *self.axis, *self.motion)
+        return (self.radius, *self.centre, *self.axis, *motion_specs(self.motion))
 
     def geometry(self, params, t):
-        shift = t * _vector(self.motion, params)
+        shift = shift_at(self.motion, params, t, 3)
         return {"R": jnp.asarray(resolve(self.radius, params), dtype=float),
                 "c": _vector(self.centre, params) + shift, "a": _unit(_vector(self.axis, params)),
                 "shift": shift}
@@ -200,16 +210,15 @@ class Implicit(_Surface):
     origin: tuple = (0.0, 0.0, 0.0)
     motion: tuple | None = None
 
+    def __post_init__(self):
+        object.__setattr__(self, "motion", motion_legs(self.motion, len(tuple(self.origin)), "Implicit"))
+
     def specs(self):
-        return (*self.parameters.values(), *self.origin, *(self.motion or ()))
+        return (*self.parameters.values(), *self.origin, *motion_specs(self.motion))
 
     def geometry(self, params, t):
         origin = _vector(self.origin, params)
-        motion = jnp.zeros_like(origin) if self.motion is None else _vector(self.motion, params)
-        if motion.shape != origin.shape:
-            raise InputError(f"Implicit: origin and motion need the same number of coordinates, "
-                             f"got {origin.shape[0]} and {motion.shape[0]}")
-        shift = t * motion
+        shift = shift_at(self.motion, params, t, origin.shape[0])
         p = {k: jnp.asarray(resolve(s, params), dtype=float) for k, s in self.parameters.items()}
         return {"c": origin + shift, "p": p, "shift": shift}
 

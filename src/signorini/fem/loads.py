@@ -50,6 +50,36 @@ class Ramp:
         return jnp.clip((t - self.start) / (self.end - self.start), 0.0, 1.0)
 
 
+@dataclass(frozen=True)
+class Table:
+    """A piecewise-linear path through the points (``times[k]``, ``values[k]``) of
+    the load factor t, constant before the first and after the last: load and
+    unload (``Table((0, 0.5, 1), (0, 1, 0))``), cycles, holds. Like :class:`Ramp`
+    it multiplies a load's, a support's or an obstacle's value, and is known by
+    its values (a problem built again with it shares its compiled programs)."""
+    times: tuple
+    values: tuple
+
+    def __post_init__(self):
+        try:
+            t = tuple(float(v) for v in self.times)
+            v = tuple(float(x) for x in self.values)
+        except (TypeError, ValueError):
+            raise InputError(f"Table(times, values) needs two sequences of numbers, got "
+                             f"{self.times!r}, {self.values!r}") from None
+        if len(t) != len(v) or len(t) < 2:
+            raise InputError(f"Table: times and values need the same length, at least 2; got "
+                             f"{len(t)} and {len(v)}")
+        if not all(np.isfinite(t + v)) or any(b <= a for a, b in zip(t, t[1:])):
+            raise InputError(f"Table: the times must increase and every number be finite, got "
+                             f"times={t}, values={v}")
+        object.__setattr__(self, "times", t)
+        object.__setattr__(self, "values", v)
+
+    def __call__(self, t):
+        return jnp.interp(t, jnp.asarray(self.times), jnp.asarray(self.values))
+
+
 def _edge_weights(X, edges, kinematics):
     """(n_edges, 2): consistent weights int N_a dA of each edge end (per unit
     thickness: L/2 each; axisymmetric: 2 pi L (2 R_a + R_b) / 6)."""
