@@ -3,6 +3,8 @@ with a rigid obstacle and with a pair of bodies: each equals what it measures
 (equilibrium: the contact force is the applied load), and its DDM sensitivity
 equals central differences of its own value and the adjoint's gradient."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -43,8 +45,43 @@ def pair():
     return pb, 4, ["R1", "E2", "mu"], rsp, (rs.reaction("lower.bottom", 1), pb.params["P"])
 
 
-@pytest.mark.parametrize("case", [plane_strain, axisymmetric, three_d, pair],
-                         ids=["plane strain", "axisymmetric, friction", "3-D, friction", "2-D pair, friction"])
+def own_gmsh_mesh():
+    """A user's own 3-D mesh from a gmsh file: a tetrahedral die (physical volume
+    "die") pressed by P on a hexahedral base ("base", on its "floor"), the faces
+    "base_top", "die_face" and "load" named by physical surfaces: a mixed mesh and
+    a mortar pair, each body its own modulus."""
+    import tempfile
+
+    import meshio
+
+    base = sg.box(np.linspace(0, 1, 6), np.linspace(0, 1, 6), np.linspace(0, 0.4, 3))
+    die = sg.tetrahedra(sg.box(np.linspace(0.3, 0.7, 4), np.linspace(0.3, 0.7, 4), np.linspace(0.4, 0.6, 2)))
+    off = base.n_nodes
+    blocks = [("hexahedron", base.cells, 1), ("tetra", die.cells + off, 2),
+              ("quad", base.face_sets["z0"], 3), ("quad", base.face_sets["z1"], 4),
+              ("triangle", die.face_sets["z0"] + off, 5), ("triangle", die.face_sets["z1"] + off, 6)]
+    path = Path(tempfile.mkdtemp()) / "own.msh"
+    meshio.Mesh(np.vstack([base.nodes, die.nodes]), [(k, c) for k, c, _ in blocks],
+                cell_data={"gmsh:physical": [np.full(len(c), t) for _, c, t in blocks],
+                           "gmsh:geometrical": [np.full(len(c), t) for _, c, t in blocks]},
+                field_data={"base": np.array([1, 3]), "die": np.array([2, 3]), "floor": np.array([3, 2]),
+                            "base_top": np.array([4, 2]), "die_face": np.array([5, 2]),
+                            "load": np.array([6, 2])}).write(path, file_format="gmsh22", binary=False)
+    mesh = sg.read_mesh(path)
+    assert mesh.mixed
+    pb = sg.Problem(mesh, sg.Bodies({"base": sg.LinearElastic(E="E1"), "die": sg.LinearElastic(E="E2")}),
+                    {"E1": 100.0, "E2": 300.0, "nu": 0.3, "P": 0.2, "eps": 1000.0},
+                    fixed=[sg.Fixed("floor", k) for k in range(3)] + [sg.Fixed("load", 0), sg.Fixed("load", 1)],
+                    loads=[sg.Pressure("load", "P", resultant=True)],
+                    contact=[sg.pair("die_face", "base_top", sg.AugmentedLagrangian(eps="eps"))])
+    rsp = [rs.pressure_norm(), rs.reaction("floor", 2), rs.contact_force(component=2),
+           rs.displacement("load", 2), rs.contact_area()]
+    return pb, 1, ["E1", "E2", "P"], rsp, (rs.reaction("floor", 2), pb.params["P"])
+
+
+@pytest.mark.parametrize("case", [plane_strain, axisymmetric, three_d, pair, own_gmsh_mesh],
+                         ids=["plane strain", "axisymmetric, friction", "3-D, friction", "2-D pair, friction",
+                              "own 3-D gmsh mesh, mixed, pair"])
 def test_responses_and_their_sensitivities(case):
     """DDM (Response.of) = central FD of the response's value to 1e-6, the adjoint
     gradient = the DDM to 1e-10 (the first responses; all of them outside CI), and
