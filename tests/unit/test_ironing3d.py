@@ -110,15 +110,24 @@ def test_bad_cli_values_are_errors_not_tracebacks(tmp_path, capsys):
     assert "nu1" in capsys.readouterr().err
 
 
-def test_size_guard_refuses_refine_1_here(monkeypatch):
-    """One level of refinement multiplies the pair's kernels by ~50 (the slave
-    nodes, the faces around one, the candidates and the patch all grow): tens of
-    GB, refused before anything is built; the default fits in 8 GB."""
-    monkeypatch.setattr(resources, "available_memory", lambda: 24.0 * resources.GB)
-    with pytest.raises(ResourceError, match="ironing3d"):
-        ironing3d.check_mesh_size(refine=1)
+def test_size_guard_counts_one_batch_of_the_pair_tangent(monkeypatch):
+    """The pair's tangent evaluates its slave nodes in batches of at most 1 GiB (at
+    least one node): the default, --cells 32 and refine 1 (one node's tangent ~1 GB
+    a batch) fit in 8 GB (measured peaks 3.4, 3.8 and 5.6 GiB); one level more
+    makes one node's tangent ~10 GB and what runs over all the nodes ~70 GB,
+    refused with 24 GB before anything is built, naming the options to change."""
     monkeypatch.setattr(resources, "available_memory", lambda: 8.0 * resources.GB)
     ironing3d.check_mesh_size()
+    ironing3d.check_mesh_size(cells=32)
+    ironing3d.check_mesh_size(refine=1)
+    monkeypatch.setattr(resources, "available_memory", lambda: 24.0 * resources.GB)
+    with pytest.raises(ResourceError, match=r"ironing3d.*--refine or --cells"):
+        ironing3d.check_mesh_size(refine=2)
+    # the default's 22 nodes would take 1.18 GB at once: one batch of them is counted
+    n_dof, nc, per_node = ironing3d._sizes(0, 24, 0.5)
+    assert (n_dof, nc) == (756, 22) and ironing3d.PAIR_BYTES * nc * per_node > ironing3d.PAIR_BATCH
+    assert ironing3d.pair_bytes(nc, per_node) == pytest.approx(
+        ironing3d.PAIR_BATCH + ironing3d.PAIR_REST * nc * per_node)
 
 
 # ------------------------------------------------------------------ slow: solves

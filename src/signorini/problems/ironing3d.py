@@ -57,12 +57,19 @@ DEFAULTS = {**ironing.DEFAULTS, "s": 0.5}
 #: the 2-D problem's, X0 moved by 0.03 so that the die's ends do not sit exactly over
 #: block nodes at t = 0 (a master-end switch)
 X0, B, BD = 1.03, 0.25, 0.3125
-#: bytes per (slave node x face pair x patch coordinate) of the finite-sliding pair's
-#: tangent program (second derivatives of the face clips, all slave nodes at once):
-#: the single buffers XLA asked for, 10.5 GB at 75,600 and 23.7 GB at 172,800 of them
-#: (139 and 137 kB); and bytes besides (compilation, the solver), so that the default's
-#: estimate (4.5 GB) covers its measured peaks, 3.2-4.5 GB (docs/benchmarks.md, Ironing in 3-D)
-PAIR_BYTES, PAIR_BASE = Model.PAIR_TANGENT_BYTES, 3.0 * 1024.0**3
+#: the size guard's pair terms. The finite-sliding pair's tangent takes about 140 kB
+#: per (slave node x face pair x patch coordinate) and evaluates its slave nodes in
+#: batches of at most 1 GiB, at least one node (Model.PAIR_TANGENT_BYTES,
+#: PAIR_BATCH_BYTES); what is not batched (the pair's residual, first derivatives of
+#: the face clips, and the sensitivities, over all the slave nodes at once) takes
+#: PAIR_REST per such unit of all the slave nodes; PAIR_BASE besides (compilation, the
+#: other programs). Fitted to the peaks of `signorini ironing3d`: 3.76 GiB at --cells 32
+#: (a batch of 1.06 GB, 15k units) and 5.59 GiB at --refine 1 (one node of 0.97 GB a
+#: batch, 415k units; the peak after the path, with the sensitivities); the estimates
+#: (4.48, 6.36 GiB; the default's 4.44 against 3.36 measured) exceed them by 14-32 %
+#: (docs/benchmarks.md, Ironing in 3-D)
+PAIR_BYTES, PAIR_BATCH = Model.PAIR_TANGENT_BYTES, Model.PAIR_BATCH_BYTES
+PAIR_REST, PAIR_BASE = 5.0e3, 3.0 * 1024.0**3
 #: the block's cells along its top; the others follow (:func:`cell_counts`)
 CELLS = 24
 
@@ -113,9 +120,9 @@ def slave_zone(mesh: Mesh3D, s: float) -> np.ndarray:
     return top[(x.max(axis=1) > X0 - A + tol) & (x.min(axis=1) < X0 + A + s - tol)]
 
 
-def _sizes(refine: int, cells: int, s: float) -> tuple[int, int]:
-    """(unknowns, size of the pair's kernels) of a mesh: the slave nodes x the
-    faces around one x its candidates x its patch coordinates (every slave node
+def _sizes(refine: int, cells: int, s: float) -> tuple[int, int, int]:
+    """(unknowns, slave nodes, size of one slave node's tangent) of a mesh: the faces
+    around a node x its candidates x its patch coordinates (every slave node
     carries every die face as a candidate)."""
     nbx, nby, nbz, ndx, ndy, ndz = cell_counts(cells, refine)
     h = L / nbx
@@ -124,23 +131,38 @@ def _sizes(refine: int, cells: int, s: float) -> tuple[int, int]:
     n_dof = 3 * ((nbx + 1) * (nby + 1) * (nbz + 1) + (ndx + 1) * (ndy + 1) * (ndz + 1)) + 3 * nc
     faces_around = 4 if nby > 1 else 2
     patch = 3 * (min(nby + 1, 3) * 3 + (ndx + 1) * (ndy + 1))
-    return n_dof, nc * faces_around * ndx * ndy * patch
+    return n_dof, nc, faces_around * ndx * ndy * patch
+
+
+def pair_bytes(nodes: float, node_units: float) -> float:
+    """The memory of the finite-sliding pair's programs with ``nodes`` slave nodes of
+    ``node_units`` (face pairs x patch coordinates) each: a batch of its tangent
+    (Model._pair_batch: all the nodes if they take less than PAIR_BATCH, else about
+    PAIR_BATCH, at least one node; an upper bound of the model's whole number of nodes
+    per batch) and the programs over all the nodes at once."""
+    node = PAIR_BYTES * node_units
+    return max(min(nodes * node, PAIR_BATCH), node) + PAIR_REST * nodes * node_units
 
 
 def check_mesh_size(refine: int = 0, cells: int = CELLS, *, s: float = DEFAULTS["s"],
                     force: bool = False, solver="auto") -> None:
     """The size guard of the ironing3d meshes before they are built
     (:func:`signorini.linsolve.check_size`): the unknowns of both bodies and the
-    pair's multipliers, and the finite-sliding pair's kernels (their tangents,
-    second derivatives of the face clips), whose size is the slave nodes x the
-    faces around one x its candidate die faces x its patch's coordinates: like
-    the cells^6 (n_dof^2) as both bodies are refined. ``s``: the slide (the
-    slave part of the block's top follows it; the nominal one if smaller)."""
+    pair's multipliers, and the finite-sliding pair's programs (:func:`pair_bytes`):
+    a slave node's tangent (second derivatives of the face clips) takes the faces
+    around it x its candidate die faces x its patch's coordinates, like the
+    cells^4 (n_dof^(4/3)) as both bodies are refined, and the slave nodes grow
+    like the cells^2. ``s``: the slide (the slave part of the block's top follows
+    it; the nominal one if smaller)."""
     cell_counts(cells, refine)  # the options' checks
     # beyond 2^40 every count is refused: the counts of so many levels would be huge numbers
-    n_dof, kernels = _sizes(min(int(refine), 40), cells, max(float(s), DEFAULTS["s"]))
-    check_size(n_dof, force=force, what="the ironing3d problem", dim=3, solver=solver,
-               extra=lambda n: PAIR_BASE + PAIR_BYTES * kernels * (n / n_dof) ** 2,
+    n_dof, nc, per_node = _sizes(min(int(refine), 40), cells, max(float(s), DEFAULTS["s"]))
+
+    def extra(n):
+        g = n / n_dof
+        return PAIR_BASE + pair_bytes(nc * g ** (2 / 3), per_node * g ** (4 / 3))
+
+    check_size(n_dof, force=force, what="the ironing3d problem", dim=3, solver=solver, extra=extra,
                hint="coarser meshes (smaller --refine or --cells)")
 
 
