@@ -28,17 +28,20 @@ class ModelFields:
             xs, ls, a, geo, self.obstacle_at(s, X0), cp))(x, lam, A, Xs)
         return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
 
+    def _surface_state(self, w, params, t, state_n, surface: int):
+        """(surface, its nodes' contact inputs x, lam, A, geo, cp, Xs, their history)."""
+        s = self.surfaces[surface]
+        u, lams = self.split(w)
+        inputs = self.contact_inputs(s, self.reference(params), u, lams[surface], params, t)
+        return (s,) + tuple(inputs) + (self._node_history(surface, state_n),)
+
     def contact_frames(self, w, params, t, state_n, surface: int = 0):
         """Pure function (3-D): per node of a surface (each (nc, 3)) the obstacle's
         normal n' at the node, the tangent basis (t1, t2) of its tangential
         multipliers, and the contact force on the body per reference area
         (:meth:`contact_forces` / A_S: what balances the supports; with linearised
         kinematics along the body's reference normal)."""
-        s = self.surfaces[surface]
-        X = self.reference(params)
-        u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
-        h = self._node_history(surface, state_n)
+        s, x, lam, A, geo, cp, Xs, h = self._surface_state(w, params, t, state_n, surface)
 
         def frame(xs, hs, X0):
             n = self.obstacle_at(s, X0).normal(xs, geo)
@@ -54,12 +57,8 @@ class ModelFields:
         slave body at its nodes, gathered from every slave node's patch (the master
         body receives the opposite). ``state_n``: the state before the increment,
         needed with friction."""
-        s = self.surfaces[surface]
-        X = self.reference(params)
-        u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
+        s, x, lam, A, geo, cp, Xs, h = self._surface_state(w, params, t, state_n, surface)
         meth = s.contact.method
-        h = self._node_history(surface, state_n)
         d = self.dim
         rows = jax.vmap(lambda xs, ls, a, hs, X0: meth.residual(
             xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs), (0, 0, 0, 0 if h is not None else None, 0))(
@@ -74,12 +73,8 @@ class ModelFields:
         """Pure function: per-node (status code, slip increment g_T) of a friction
         surface (codes of :mod:`signorini.contact.friction`); state_n = state
         *before* the increment of w."""
-        s = self.surfaces[surface]
-        X = self.reference(params)
-        u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
+        s, x, lam, A, geo, cp, Xs, h = self._surface_state(w, params, t, state_n, surface)
         meth = s.contact.method
-        h = self._node_history(surface, state_n)
         st = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
             xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
         gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self.obstacle_at(s, X0), hs))(x, h, Xs)
