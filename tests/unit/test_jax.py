@@ -37,4 +37,5 @@ def test_public_names_resolve():
 
     for name in sg.__all__:
         assert getattr(sg, name) is not None
-    assert set(sg.__all__) - {"__version__"} == set(sg._WHERE)
+    assert set(sg.__all__) - {"__version__"} == set(sg._WHERE) | set(sg._SUBPACKAGES)
+    assert sg.responses.contact_force.__module__ == "signorini.responses"
