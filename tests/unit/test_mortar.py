@@ -129,6 +129,7 @@ def test_bodies_of_several_laws_patch_test():
     assert not np.any(np.delete(alpha, low))
 
 
+@pytest.mark.slow  # two J2 models to compile; the grouping by law in CI: the patch test above
 def test_a_law_in_two_groups_is_the_same_law():
     """Bodies of two laws that are one law (a subclass of J2Plasticity changes the
     grouping, not the physics): the same path, displacements and sensitivities as

@@ -106,14 +106,24 @@ def test_patch_test_tetrahedra(friction):
     pytest.param("low", True, marks=pytest.mark.slow)],  # in CI: friction with one slave kind
     ids=["tetrahedra on hexahedra", "tetrahedra on hexahedra, friction", "hexahedra on tetrahedra",
          "hexahedra on tetrahedra, friction"])
-def test_patch_test_mixed_mesh(tets, friction):
+def test_patch_test_mixed_mesh(tets, friction, tmp_path):
     """A tetrahedral block on a hexahedral one (a mixed mesh, 2:3, triangles
     against quadrilaterals, either slave): the same uniform state in every cell
-    of both kinds."""
+    of both kinds, written as one VTU file of both kinds."""
+    import meshio
+
+    from signorini.post.files import write_vtu
+
     mesh = blocks(2, 3, tets)
     assert mesh.mixed and [c.name for c, _ in mesh.groups()] == ["hexahedron", "tetra"]
-    check_uniform(sg.solve(patch_problem(2, 3, friction=friction, tets=tets), steps=2 if friction else 1),
-                  friction)
+    sol = sg.solve(patch_problem(2, 3, friction=friction, tets=tets), steps=2 if friction else 1)
+    check_uniform(sol, friction)
+    write_vtu(sol, tmp_path / "both.vtu")
+    vtu = meshio.read(tmp_path / "both.vtu")
+    kinds = {b.type: len(b.data) for b in vtu.cells}
+    assert kinds == {"hexahedron": 8 if tets == "up" else 18, "tetra": 108 if tets == "up" else 48}
+    sz = np.concatenate(vtu.cell_data["cauchy_stress"])[:, 8]
+    assert np.abs(sz + P).max() <= 1e-10 * P
 
 
 def test_patch_test_finite_kinematics():
@@ -442,6 +452,7 @@ def test_mixed_mesh_ddm_equals_fd(held):
             assert np.abs(c[f"d{k}_d{n}"] - fd).max() <= 1e-6 * scale, (n, k)
 
 
+@pytest.mark.slow  # a second model to compile; the kernel's invariance under any rotation: the patch test, in CI
 def test_an_arbitrary_rigid_motion_of_the_whole_problem_changes_nothing(held):
     """The mixed problem turned by an arbitrary rotation and moved: pressures,
     status, the traction vectors (turned) and the sensitivities of the pressures
@@ -466,6 +477,7 @@ def test_mixed_mesh_adjoint_equals_ddm(held):
     adjoint_equals_ddm(held[0], HELD, 2)
 
 
+@pytest.mark.slow  # J2's programs to compile; history padding by law: test_mortar.py, the mixed VTU: the patch test
 def test_mixed_mesh_with_plasticity_and_its_files(tmp_path):
     """J2 plasticity on the mixed patch (the tetrahedra's one Gauss point beside
     the hexahedra's eight in one history array): a uniform Cauchy stress and
