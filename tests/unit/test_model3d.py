@@ -118,16 +118,18 @@ MU = 0.1
 
 
 def hertz3d_friction(mesh, R=1.0, E=100.0, mu=MU, shift=(0.0, 0.0, 0.0), rotation=None,
-                     fixed=None):
+                     fixed=None, spin=None):
     """The sphere pressed into the block with Coulomb friction (the 2-D law given:
     a 3-D surface takes it as the Coulomb disc); ``rotation`` (3, 3) turns the
-    mesh, the sphere and its motion together."""
+    mesh, the sphere and its motion together; ``spin`` (radians) turns the sphere
+    about its vertical axis as it presses."""
     Q = np.eye(3) if rotation is None else np.asarray(rotation)
     mesh = Mesh3D(mesh.nodes @ Q.T, mesh.cells, mesh.node_sets, mesh.face_sets)
     centre = lambda p: (jnp.asarray(shift) + jnp.asarray(Q) @ jnp.array([0.0, 0.0, p["R"] + 1.0]))
     c = tuple((lambda p, k=k: centre(p)[k]) for k in range(3))
     motion = tuple(float(v) for v in Q @ np.array([0.0, 0.0, -D]))
-    sphere = Sphere(radius="R", centre=c, motion=motion)
+    turn = None if spin is None else tuple(float(v) for v in Q @ np.array([0.0, 0.0, spin]))
+    sphere = Sphere(radius="R", centre=c, motion=motion, rotation=turn)
     mesh = Mesh3D(mesh.nodes + np.asarray(shift), mesh.cells, mesh.node_sets, mesh.face_sets)
     if fixed is None:
         fixed = [sg.Fixed("z0", 2), sg.Fixed("x0", 0), sg.Fixed("y0", 1)]
@@ -202,20 +204,21 @@ def test_friction_on_a_slab_is_the_plane_strain_problem():
 
 def test_friction_rigid_motion_changes_nothing():
     """The whole frictional problem (a full block, its base held, so no symmetry
-    planes) turned by a rotation and moved by a translation: the same pressures,
-    the same magnitudes of the tangential tractions, the same stick/slip zones and
-    the same sensitivities (the tangent bases differ: e_S is a property of the mesh)."""
+    planes) turned by a rotation and moved by a translation, the sphere spinning
+    about its (turned) vertical axis as it presses: the same pressures, the same
+    magnitudes of the tangential tractions, the same stick/slip zones and the same
+    sensitivities (the tangent bases differ: e_S is a property of the mesh)."""
     g = graded_coordinates(1.0, 0.25, 3, 1.5)
     full = np.concatenate([-g[::-1], g[1:]])
     mesh = box(full, full, 1.0 - g[::-1])
     fixed = [sg.Fixed("z0", k) for k in range(3)]
-    a = sg.solve(hertz3d_friction(mesh, fixed=fixed), steps=3, wrt=["R"]).contact()
+    a = sg.solve(hertz3d_friction(mesh, fixed=fixed, spin=0.02), steps=3, wrt=["R"]).contact()
     angle = 0.7
     axis = np.array([1.0, 2.0, 2.0]) / 3.0
     K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     Q = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
     b = sg.solve(hertz3d_friction(mesh, fixed=[sg.Fixed("z0", k) for k in range(3)], rotation=Q,
-                                  shift=(0.4, -1.1, 0.3)), steps=3, wrt=["R"]).contact()
+                                  shift=(0.4, -1.1, 0.3), spin=0.02), steps=3, wrt=["R"]).contact()
     assert set(a["status"][a["p_N"] > 0]) == {"stick", "slip"}
     assert list(a["status"]) == list(b["status"])
     scale = a["p_N"].max()

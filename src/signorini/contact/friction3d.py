@@ -6,9 +6,10 @@ tangential ones in the basis (t1, t2) of the obstacle's tangent plane at the
 node: t1 = e_S x n' / |e_S x n'|, t2 = n' x t1, with e_S a unit vector fixed per
 node (a property of the mesh). With the closest point y(x) in the obstacle's
 frame (:mod:`signorini.contact.obstacles3d`) and its value y_n at the end of
-the previous increment (the history),
+the previous increment (the history), and Q the obstacle's rotation (the
+identity unless it turns),
 
-    g_N = g(x_S),   g_T = (t1 . (y(x_S) - y_n), t2 . (y(x_S) - y_n)),
+    g_N = g(x_S),   g_T = (t1 . Q (y(x_S) - y_n), t2 . Q (y(x_S) - y_n)),
 
 lam^_N = lam_N + eps_N g_N, lam^_T = lam_T + eps_T g_T, rho = mu <lam^_N>_-, and the
 pseudo-potential of the 2-D law (:mod:`signorini.contact.friction`) with squared
@@ -75,6 +76,8 @@ class CoulombDisc(Coulomb):
         """g_T (2,) in the tangent basis at x."""
         t1, t2 = tangent_basis(obstacle.normal(x, geo), e)
         d = obstacle.closest(x, geo) - y_n
+        if isinstance(geo, dict) and "Q" in geo:  # the obstacle's frame turns with it
+            d = geo["Q"] @ d
         return jnp.stack([t1 @ d, t2 @ d])
 
     def augmented(self, x, lam, geo, obstacle, cp, hist):
