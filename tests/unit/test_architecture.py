@@ -31,7 +31,7 @@ LAYERS = [
     ("model", ["signorini.model"]),
     ("sensitivity", ["signorini.sensitivity"]),
     ("algorithms", ["signorini.algorithms"]),
-    ("design", ["signorini.design"]),
+    ("design", ["signorini.design", "signorini.responses"]),
     ("post", ["signorini.post"]),
     ("problems", ["signorini.problems"]),
     ("app", ["signorini.app"]),

@@ -31,6 +31,7 @@ from ..contact.obstacles import Circle
 from ..model.problem import Problem
 from ..model.kernels import Model
 from ..linsolve import check_size
+from .. import responses
 from .._jax import jnp
 from ..algorithms.coarse_to_fine import solve_coarse_to_fine
 from ..algorithms.prolongation import Prolongation
@@ -183,18 +184,12 @@ def hertz_problem(params: dict | None = None, *, refine: int = 0, method: str = 
 
 
 def contact_work(model, surface: int = 0):
-    """Response W(w, params, t) = sum_S A_S p_N,S (g_0,S - g_S): the work of the
-    contact pressure on the closure of the initial gap g_0 (the gap at u = 0).
-    At convergence p_N g = 0, so W = sum_S A_S p_N,S g_0,S: it depends on the
-    pressures and on the reference geometry (shape, obstacle), smoothly on each
-    branch of the contact law. The scalar response of the adjoint runs."""
-    zero = jnp.zeros(model.n_dof)
-
-    def work(w, params, t):
-        f = model.contact_fields(w, params, t, surface)
-        g0 = model.contact_fields(zero, params, t, surface)["gap"]
-        return jnp.sum(f["area"] * f["p_N"] * (g0 - f["gap"]))
-    return work
+    """Response W(w, params, t) = sum_S A_S p_N,S (g_0,S - g_S) of ``model``: the
+    work of the contact pressure on the closure of the initial gap g_0 (the gap
+    at u = 0), :func:`signorini.responses.contact_work` as a function of (w,
+    params, t). The scalar response of the adjoint runs."""
+    work = responses.contact_work(surface)(model)
+    return lambda w, params, t: work(w, params, t, None)
 
 
 def fine_cell_size(problem: Problem) -> float:
