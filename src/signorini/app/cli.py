@@ -30,12 +30,12 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The parser of every command in :data:`signorini.app.registry.COMMANDS`, or of
     command ``only`` alone (what a run needs: the other commands' modules are not
     imported then)."""
-    from .options import UNITS, Formatter  # noqa: PLC0415  (lazy: the library, after the output helper started)
+    from .options import UNITS_ALL, Formatter  # noqa: PLC0415  (lazy: the library, after the output helper started)
 
     parser = argparse.ArgumentParser(
         prog="signorini", formatter_class=Formatter,
         description="Contact mechanics with exact sensitivities: the Alart-Curnier augmented "
-                    "Lagrangian with direct-differentiation (DDM) sensitivities. " + UNITS,
+                    "Lagrangian with direct-differentiation (DDM) sensitivities. " + UNITS_ALL,
         epilog="Run 'signorini COMMAND --help' for the options of a command. Exit codes: 0 "
                "success, 1 the solve failed (converged increments and summary.json with status "
                "'failed' are written), 2 bad input, 130 / 143 interrupted by Ctrl-C (SIGINT) / "

@@ -12,6 +12,11 @@ from ..params import parse_assignment
 from ..problems import hertz, hertz_friction
 
 UNITS = "Units: mm, N/mm (force per unit thickness), N/mm² (MPa)."
+#: the units of the whole program: plane-strain forces per unit thickness, others whole
+UNITS_ALL = ("Units: mm, N/mm² (MPa); forces in N/mm (per unit thickness) in plane strain, in N "
+             "in 3-D and axisymmetry.")
+#: the units of a 3-D command (its help says which forces are whole and which on the model)
+UNITS_SOLID = "Units: mm, N, N/mm² (MPa)."
 #: the units of a 3-D or axisymmetric command: its forces are whole forces
 UNITS_3D = "Units: mm, N (P: the sphere's whole force, in 3-D and axisymmetric alike), N/mm² (MPa)."
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...problems import ironing3d as problem
-from ..options import UNITS
+from ..options import UNITS_SOLID
 from .ironing import RTOL, SENSITIVITIES, Ironing, fd_names_option, ironing_set  # noqa: F401
 
 IRONING3D_SET = ironing_set("die's half-cylinder", problem.DEFAULTS)
@@ -48,7 +48,7 @@ class Ironing3D(Ironing):
         "differences of the whole path), contact.csv (the block's top at the end), "
         "summary.json (forces, DDM vs FD, partner changes and switch points of the "
         "path, Newton log), force.png, sensitivity.png and an ironing3d.pvd series "
-        "(one VTU per body and increment). " + UNITS)
+        "(one VTU per body and increment). " + UNITS_SOLID)
     CELLS_HELP = ("the block's cells along its top (at least 24); its height gets N/8, its "
                   "half-width N/24 (at least 1), the die's arc N/6 (cells 1.5 times the "
                   "block's), its height a quarter of that, its half-length as many as "

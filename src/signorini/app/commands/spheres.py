@@ -26,7 +26,7 @@ from ...problems.spheres import (
 )
 from .. import validity
 from ..options import (
-    UNITS,
+    UNITS_SOLID,
     Formatter,
     command_options,
     finish,
@@ -86,7 +86,7 @@ def add_parser(sub) -> None:
                     "stick/slip status, dp_N_d<name>), contact_upper.csv (the upper surface's "
                     "pressure from its contact forces), summary.json (a and p0 against Hertz, "
                     "c/a against Cattaneo-Mindlin, Newton log, DDM vs FD), pressure.png, "
-                    "sensitivity.png, traction.png (with friction) and spheres.vtu. " + UNITS)
+                    "sensitivity.png, traction.png (with friction) and spheres.vtu. " + UNITS_SOLID)
     command_options(p, SPHERES_SET, example="mu=0.3", fixed_mesh=False)
     p.add_argument("--n-fine", type=positive_int, default=N_FINE, metavar="N",
                    help="the lower body's cells across the fine zone (1.5 a0 from the axis)")
