@@ -20,7 +20,7 @@ from typing import Union
 
 import numpy as np
 
-from ._jax import jnp, to_device
+from ._jax import jax, jnp, to_device
 from .errors import InputError, UnknownParameterError
 
 Spec = Union[float, int, str, Callable]
@@ -43,7 +43,30 @@ def resolve(spec: Spec, params: Mapping):
                 f"unknown parameter {e.args[0]!r} in a parameter expression; defined parameters: "
                 f"{sorted(params)}"
             ) from None
+        except _TRACE_ERRORS as e:
+            raise InputError(
+                f"a parameter expression ({_name(spec)}) cannot be differentiated: it converts "
+                f"its parameters to plain numbers ({type(e).__name__}); write it with jax.numpy "
+                "(jnp.sin, jnp.sqrt, ...) instead of numpy or math, and without float() or if on "
+                "a parameter's value"
+            ) from None
     return spec
+
+
+def _name(f) -> str:
+    code = getattr(f, "__code__", None)
+    where = f" at {code.co_filename}:{code.co_firstlineno}" if code is not None else ""
+    return f"{getattr(f, '__qualname__', type(f).__name__)}{where}"
+
+
+def _trace_errors() -> tuple:
+    errors = jax.errors
+    return tuple(getattr(errors, n) for n in ("TracerArrayConversionError", "ConcretizationTypeError",
+                                            "TracerBoolConversionError", "TracerIntegerConversionError")
+                 if hasattr(errors, n))
+
+
+_TRACE_ERRORS = _trace_errors()
 
 
 def names_in(specs: Iterable[Spec]) -> set[str]:

@@ -461,6 +461,16 @@ def test_non_differentiable_expression_is_named_not_a_singular_tangent(small, mo
     assert sg.solve(pb).status == "converged"
 
 
+def test_a_numpy_expression_is_named_not_a_jax_traceback(small):
+    """A modulus written with numpy (np.sqrt of a parameter): JAX cannot trace it;
+    the error names the expression and says to write it with jax.numpy."""
+    mat = dataclasses.replace(small.material, E=lambda p: np.sqrt(p["k"]))
+    pb = dataclasses.replace(small, material=mat, params={**small.params, "k": 1e4})
+    with pytest.raises(InputError) as e:
+        sg.solve(pb, wrt=["k"])
+    ours(e, "parameter expression", "test_bad_inputs.py", "jax.numpy")
+
+
 def test_non_finite_pseudo_load_on_supported_dofs_only_is_harmless(small):
     """A traction sqrt(k) at k = 0 on the symmetry edge, whose normal DOFs are
     supported: its NaN tangent falls on prescribed rows only, which the
