@@ -40,6 +40,7 @@ _WHERE = {
     **dict.fromkeys(("finite_difference",), "design.finite_differences"),
     **dict.fromkeys(("Gradient", "gradient"), "design.gradient"),
     **dict.fromkeys(("Objective", "minimize"), "design.optimize"),
+    **dict.fromkeys(("Curve", "FitResult", "fit"), "design.fit"),
     **dict.fromkeys(("ConvergenceError", "InputError", "InvertedElementError",
                      "NonDifferentiableError", "ResourceError", "SignoriniError",
                      "SignoriniWarning", "SingularTangentError", "SolverError",
@@ -75,6 +76,8 @@ __all__ = [
     "DDM", "Adjoint", "FiniteDifferences", "gradient", "Gradient", "finite_difference",
     # what to differentiate (sg.responses.contact_force, reaction, ...), optimisation with it
     "responses", "Objective", "minimize",
+    # identification of parameters from measured curves, with standard errors
+    "fit", "Curve", "FitResult",
     # results
     "write_vtu", "write_pvd",
     # errors and warnings

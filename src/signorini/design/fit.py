@@ -1,0 +1,679 @@
+"""Identification of parameters from measured curves: :func:`fit` (docs/fitting.md).
+
+Each measured curve is a response (:mod:`signorini.responses`) at load factors
+t_j (the pseudo-time of the load path) with values m_j and weights w_j; the
+fit minimises the misfit of the whole path over the parameters x,
+
+    F(x) = sum_j r_j(x)^2,    r_j = sqrt(w_j) (y(t_j; x) - m_j),
+
+with the residuals' Jacobian J = dr/dx exact: one :func:`signorini.solve` with
+``wrt=`` the parameters gives every y(t_j) and its DDM sensitivities, so the
+residuals and J at a point cost one solve (the last points are kept: SciPy's
+value-then-Jacobian calls at the same x share it). At the optimum,
+Gauss-Newton's covariance of the parameters
+
+    s^2 = r^T r / (m - n),    C = s^2 (J^T J)^-1,    SE_i = sqrt(C_ii),
+    rho_ij = C_ij / (SE_i SE_j)
+
+(m data of positive weight, n parameters) gives their standard errors and
+correlations; a :class:`~signorini.errors.SignoriniWarning` says when they are
+not to be trusted (a correlation |rho| > 0.99, J^T J singular or its condition
+number, columns scaled to unit norm, above 1e10, a parameter at its bound).
+
+Where the responses are evaluated: at the converged increments. With
+``steps=None`` the number of equal increments is the smallest n <= 1000 that
+puts every measured time on an increment (t_j n an integer), so each datum is an
+increment's value. With ``steps`` given, a time between two increments t_k <
+t_j < t_k+1 takes the linear interpolation of their values and sensitivities
+(the same weights in both, fixed by the times). Either way the increments come
+from the times and ``steps`` alone, never from a parameter; a cut increment
+adds increments but the data keep their times. The solve stops at the last
+measured time (``until``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..algorithms.newton import NewtonOptions
+from ..algorithms.stepping import solve
+from ..errors import ConvergenceError, InputError
+from ..model import checks
+from ..params import check_names
+from ..responses import Response
+from .evaluation import ObjectiveEvaluation
+from .history import Evaluation
+
+log = logging.getLogger("signorini")
+
+__all__ = ["METHODS", "Curve", "FitResult", "Misfit", "fit"]
+
+#: optimisers of :func:`fit`
+METHODS = ("least_squares", "L-BFGS-B")
+#: the largest number of increments derived from the measured times
+MAX_STEPS = 1000
+#: a measured time within this of an increment's load factor is that increment
+TIME_TOL = 1e-9
+#: above this |correlation| of two parameters the fit warns
+MAX_CORRELATION = 0.99
+#: above this condition number of J^T J (columns scaled to unit norm) the fit warns;
+#: above SINGULAR it takes J^T J as singular (no covariance)
+MAX_CONDITION = 1e10
+SINGULAR = 1e14
+#: solves kept (value and Jacobian at the same point share one)
+KEPT_POINTS = 4
+
+
+def _numbers(x, what: str) -> np.ndarray:
+    """x as a 1-D float array of finite numbers, else an InputError naming ``what``."""
+    try:
+        a = np.asarray(x)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{what} must be a list of numbers: {e}") from None
+    if a.dtype.kind not in "iuf":
+        bad = next((v for v in a.ravel() if not isinstance(v, (int, float, np.number))
+                    or isinstance(v, bool)), a.ravel()[0] if a.size else None)
+        bad = bad.item() if isinstance(bad, np.generic) else bad
+        raise InputError(f"{what} must be numbers, got {bad!r} ({a.dtype} values)")
+    if a.ndim > 1:
+        raise InputError(f"{what} must be a flat list of numbers, got shape {a.shape}")
+    a = a.astype(float).ravel()
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{what} must be finite numbers, got {float(a[~np.isfinite(a)][0])}")
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Curve:
+    """A measured curve: a response at load factors (pseudo-times) with its values.
+
+    Attributes:
+        response: the :class:`~signorini.responses.Response` measured.
+        times: (k,) load factors, increasing, in (0, 1].
+        values: (k,) the measured values.
+        weights: (k,) weights w >= 0 of the squared differences (default 1;
+            1 / variance of the measurement for statistical standard errors,
+            or any relative weights: the fit estimates the common scale).
+    """
+
+    response: Response
+    times: np.ndarray
+    values: np.ndarray
+    weights: np.ndarray | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.response, Response):
+            raise InputError("a curve's response must be a signorini.responses Response (e.g. "
+                             f"sg.responses.contact_force(component=2)), got {self.response!r}")
+        name = f"curve {self.response.name}"
+        t = _numbers(self.times, f"{name}: times")
+        v = _numbers(self.values, f"{name}: values")
+        w = np.ones_like(t) if self.weights is None else _numbers(self.weights, f"{name}: weights")
+        if not (t.size == v.size == w.size) or t.size == 0:
+            raise InputError(f"{name}: times, values (and weights) need one entry per measured "
+                             f"point, got {t.size}, {v.size}, {w.size}")
+        if np.any(np.diff(t) <= 0):
+            k = int(np.argmax(np.diff(t) <= 0))
+            raise InputError(f"{name}: the times must increase; time {float(t[k + 1])!r} (entry {k + 1}) "
+                             f"follows {float(t[k])!r}")
+        if t[0] <= 0 or t[-1] > 1 + TIME_TOL:
+            raise InputError(f"{name}: the times are load factors of the path, in (0, 1]; got "
+                             f"{float(t[0])!r} .. {float(t[-1])!r}")
+        if np.any(w < 0):
+            raise InputError(f"{name}: weights must be >= 0")
+        for k, a in (("times", t), ("values", v), ("weights", w)):
+            object.__setattr__(self, k, a)
+
+    @property
+    def name(self) -> str:
+        return self.response.name
+
+    @classmethod
+    def of(cls, spec) -> Curve:
+        """A curve from a :class:`Curve` or a tuple (response, times, values[, weights])."""
+        if isinstance(spec, Curve):
+            return spec
+        if isinstance(spec, (tuple, list)) and len(spec) in (3, 4):
+            return cls(*spec)
+        raise InputError("a curve is a signorini.Curve or a tuple (response, times, values[, weights]), "
+                         f"got {type(spec).__name__}")
+
+
+def _curves(curves) -> list[Curve]:
+    if isinstance(curves, Curve) or (isinstance(curves, tuple) and curves
+                                     and isinstance(curves[0], Response)):
+        curves = [curves]
+    out = [Curve.of(c) for c in curves]
+    if not out:
+        raise InputError("fit needs at least one measured curve")
+    return out
+
+
+def _derived_steps(times: np.ndarray) -> int:
+    """The smallest n <= MAX_STEPS with every t n an integer (to TIME_TOL)."""
+    for n in range(1, MAX_STEPS + 1):
+        k = times * n
+        if np.all(np.abs(k - np.round(k)) <= TIME_TOL * n):
+            return n
+    raise InputError(f"the measured times are not on a grid k/n of n <= {MAX_STEPS} equal "
+                     "increments: give steps= (the responses are then interpolated linearly "
+                     "between increments)")
+
+
+@dataclass
+class Point:
+    """The residuals of the curves at a parameter point x (one solve)."""
+
+    x: np.ndarray
+    status: str                      # "ok", "failed" (Newton), "invalid" (rejected parameters)
+    r: np.ndarray | None = None      # (m,) weighted residuals sqrt(w) (y - m)
+    J: np.ndarray | None = None      # (m, n) dr/dx
+    fitted: list | None = None       # the model's values at each curve's times
+    solution: object = None
+    reason: str = ""
+    error: BaseException | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def F(self) -> float:
+        return float(self.r @ self.r) if self.ok else math.inf
+
+
+class Misfit(ObjectiveEvaluation):
+    """F(x) = sum_j r_j^2 of measured curves, its weighted residuals r and their Jacobian J.
+
+    The residuals and J at x cost one :func:`~signorini.solve` with DDM
+    sensitivities; the last :data:`KEPT_POINTS` points are kept. Every solve is
+    recorded (:class:`~signorini.design.history.Evaluation`: F, gradient 2 J^T r;
+    F = inf where the solve failed). From :class:`~signorini.Objective`'s
+    machinery it takes the point checks, each distinct warning of the solves
+    once, and the penalty of a failed point (:func:`fit` with L-BFGS-B).
+
+    Args:
+        problem: the problem at its nominal values; a point x is solved as
+            ``problem.with_params(**dict(zip(wrt, x)))``.
+        wrt: the parameters to identify.
+        curves: :class:`Curve` objects or tuples (response, times, values[, weights]).
+        steps: equal load increments (default: derived from the times, module docstring).
+        options: :class:`~signorini.NewtonOptions` of the solves.
+        solver: linear solver of the solves.
+        label: the solves' name in log lines and progress bars.
+    """
+
+    def __init__(self, problem, wrt: Sequence[str], curves, *, steps: int | None = None,
+                 options: NewtonOptions | None = None, solver="auto", label: str = "fit"):
+        if isinstance(wrt, str):
+            raise InputError(f"wrt must be a list of parameter names, got the string {wrt!r}")
+        self.names = [str(n) for n in wrt]
+        if not self.names:
+            raise InputError("fit needs at least one parameter to identify (wrt)")
+        if len(set(self.names)) != len(self.names):
+            raise InputError(f"wrt lists a parameter twice: {self.names}")
+        check_names(self.names, problem.params, "the parameters to fit (wrt)")
+        self.curves = _curves(curves)
+        times = np.concatenate([c.times for c in self.curves])
+        if steps is None:
+            steps = _derived_steps(times)
+        elif isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+            raise InputError(f"steps must be a positive integer or None (from the times), got {steps!r}")
+        if times.min() < (1 - TIME_TOL) / steps:
+            raise InputError(f"the measured time {float(times.min())!r} comes before the first increment "
+                             f"(t = 1/{steps}): give more steps")
+        self.n_data = int(sum(np.count_nonzero(c.weights > 0) for c in self.curves))
+        if self.n_data < len(self.names):
+            raise InputError(f"fewer data ({self.n_data} measured points of positive weight) than "
+                             f"parameters ({len(self.names)}: {self.names}): they cannot be identified")
+        if options is not None and not isinstance(options, NewtonOptions):
+            raise InputError(f"options must be a signorini.NewtonOptions, got {type(options).__name__}")
+        self.problem, self.steps, self.solver, self.label = problem, int(steps), solver, label
+        self.options = options if options is not None else NewtonOptions()
+        self.until = float(min(times.max(), 1.0))
+        self.records: list[Evaluation] = []
+        self.warnings: list[str] = []
+        self.failure_value = None
+        self._seen_logs: set = set()
+        self._kept: OrderedDict[bytes, Point] = OrderedDict()
+        self.best: Point | None = None
+
+    # ------------------------------------------------------------ public API
+    def evaluate(self, x) -> Point:
+        """The residuals and Jacobian at x (a kept point, else one solve)."""
+        x = self.point(x)
+        key = x.tobytes()
+        pt = self._kept.get(key)
+        if pt is not None:
+            self._kept.move_to_end(key)
+            return pt
+        t0 = time.perf_counter()
+        with self._quiet():
+            pt = self._solve_point(x)
+        self._kept[key] = pt
+        while len(self._kept) > KEPT_POINTS:
+            self._kept.popitem(last=False)
+        if pt.ok and (self.best is None or pt.F < self.best.F):
+            self.best = pt
+        g = 2.0 * pt.J.T @ pt.r if pt.ok else None
+        sol = pt.solution
+        its = sum(s.iterations for s in sol.log) if sol is not None else 0
+        ev = Evaluation(len(self.records) + 1, "value+gradient", x, pt.F, g, pt.status, pt.reason,
+                        its, len(sol.increments) if sol is not None else 0,
+                        sum(not s.converged for s in sol.log) if sol is not None else 0,
+                        time.perf_counter() - t0, list(sol.warnings) if sol is not None else [],
+                        pt.error)
+        self.records.append(ev)
+        log.info("%s evaluation %d: F = %.10g%s, %d Newton iterations, %.2f s%s", self.label,
+                 ev.index, ev.F, "" if g is None else f", |grad| = {ev.grad_norm:.4g}", its, ev.time,
+                 "" if pt.ok else f" [{pt.status}: {pt.reason.splitlines()[0][:200]}]")
+        return pt
+
+    def residuals(self, x) -> np.ndarray:
+        """(m,) the weighted residuals sqrt(w_j) (y(t_j; x) - m_j), all curves in order
+        (+inf where the solve failed)."""
+        pt = self.evaluate(x)
+        return pt.r.copy() if pt.ok else np.full(self._m, math.inf)
+
+    def jacobian(self, x) -> np.ndarray:
+        """(m, n) dr/dx, exact (DDM)."""
+        pt = self.evaluate(x)
+        if not pt.ok:
+            raise pt.error
+        return pt.J.copy()
+
+    def __call__(self, x) -> float:
+        """F(x) = r^T r."""
+        return self.evaluate(x).F
+
+    def gradient(self, x) -> np.ndarray:
+        """dF/dx = 2 J^T r."""
+        pt = self.evaluate(x)
+        if not pt.ok:
+            raise pt.error
+        return 2.0 * pt.J.T @ pt.r
+
+    @property
+    def n_solves(self) -> int:
+        return len(self.records)
+
+    @property
+    def n_failed(self) -> int:
+        return sum(not r.ok for r in self.records)
+
+    # -------------------------------------------------------------- internals
+    @property
+    def _m(self) -> int:
+        return sum(c.times.size for c in self.curves)
+
+    def _solve_point(self, x) -> Point:
+        pvals = {n: float(v) for n, v in zip(self.names, x)}
+        try:
+            if not np.all(np.isfinite(x)):
+                raise InputError(f"the parameter point is not finite: {pvals}")
+            sol = solve(self.problem.with_params(**pvals), steps=self.steps, wrt=self.names,
+                        options=self.options, solver=self.solver, until=self.until, label=self.label)
+        except ConvergenceError as e:
+            return Point(x, "failed", reason=str(e), error=e, solution=e.partial)
+        except InputError as e:
+            return Point(x, "invalid", reason=str(e), error=e)
+        T = np.array([inc.t for inc in sol.increments])
+        rows, jac, fitted = [], [], []
+        for c in self.curves:
+            y, dy = self._curve(sol, T, c)
+            sw = np.sqrt(c.weights)
+            fitted.append(y)
+            rows.append(sw * (y - c.values))
+            jac.append(sw[:, None] * dy)
+        r, J = np.concatenate(rows), np.concatenate(jac)
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
+            reason = "the responses or their sensitivities are not finite"
+            return Point(x, "failed", reason=reason, error=ConvergenceError(reason, partial=sol),
+                         solution=sol)
+        return Point(x, "ok", r, J, fitted, sol)
+
+    def _curve(self, sol, T: np.ndarray, c: Curve):
+        """(k,) the response at the curve's times and (k, n) its sensitivities:
+        an increment's, or the linear interpolation between the two around t."""
+        seen = {}
+
+        def at(i):
+            if i not in seen:
+                v, s = c.response.of(sol, i)
+                seen[i] = (v, np.array([s[n] for n in self.names]))
+            return seen[i]
+
+        y, dy = np.empty(c.times.size), np.empty((c.times.size, len(self.names)))
+        for j, t in enumerate(c.times):
+            k = int(np.searchsorted(T, t))
+            near = [i for i in (k - 1, k) if 0 <= i < T.size and abs(T[i] - t) <= TIME_TOL]
+            if near:
+                y[j], dy[j] = at(near[0])
+            elif 0 < k < T.size:
+                a = (t - T[k - 1]) / (T[k] - T[k - 1])
+                (v0, s0), (v1, s1) = at(k - 1), at(k)
+                y[j], dy[j] = (1 - a) * v0 + a * v1, (1 - a) * s0 + a * s1
+            else:
+                raise InputError(f"curve {c.name}: the time {float(t)!r} is outside the solved path "
+                                 f"({T[0] if T.size else 0:.6g} .. {T[-1] if T.size else 0:.6g})")
+        return y, dy
+
+
+# ---------------------------------------------------------------------- result
+@dataclass(eq=False)
+class FitResult:
+    """The result of :func:`fit`.
+
+    Attributes:
+        names: the parameters, in order.
+        x: (n,) the fitted values; ``values``: the same as a dict.
+        start: the start values (dict).
+        stderr: name -> standard error sqrt(C_ii) (nan when J^T J is singular or m = n).
+        covariance: (n, n) C = s^2 (J^T J)^-1.
+        correlation: (n, n) C_ij / (SE_i SE_j) (from (J^T J)^-1, also when s = 0).
+        sigma: s = sqrt(r^T r / (m - n)), the residuals' scale (1 when the weights are
+            1 / variance and the model fits).
+        misfit: F = r^T r at the optimum.
+        residuals: (m,) the weighted residuals at the optimum; ``jacobian`` (m, n) their J.
+        n_data: m, the measured points of positive weight.
+        condition: the condition number of J^T J with columns scaled to unit norm.
+        fitted: per curve, the model's values at its times at the optimum.
+        history: one dict per iteration (0 = the start): ``iteration, F, grad_norm, x,
+            solves, time``.
+        n_solves, n_failed: solves of the fit, and how many failed (penalised).
+        success, message: the optimiser's verdict.
+        warnings: the fit's warnings (ill-conditioning, bounds) and the solves'.
+        solution: the :class:`~signorini.Solution` at the optimum.
+        evaluations: every solve's :class:`~signorini.design.history.Evaluation`.
+    """
+
+    names: list
+    x: np.ndarray
+    values: dict
+    start: dict
+    stderr: dict
+    covariance: np.ndarray
+    correlation: np.ndarray
+    sigma: float
+    misfit: float
+    residuals: np.ndarray
+    jacobian: np.ndarray
+    n_data: int
+    condition: float
+    fitted: list
+    curves: list
+    bounds: list
+    history: list
+    n_solves: int
+    n_failed: int
+    success: bool
+    message: str
+    method: str
+    time: float = 0.0
+    warnings: list = field(default_factory=list)
+    solution: object = field(default=None, repr=False)
+    evaluations: list = field(default_factory=list, repr=False)
+    label: str = "fit"
+
+    @property
+    def iterations(self) -> int:
+        return len(self.history) - 1
+
+    def table(self) -> str:
+        """The fitted values, standard errors and correlations, for a person."""
+        w = max(9, *(len(n) for n in self.names))
+        lines = [(f"fit of {', '.join(self.names)} to {len(self.curves)} curve(s), {self.n_data} data "
+                  f"({self.method}): {'converged' if self.success else 'NOT converged'} in "
+                  f"{self.iterations} iterations, {self.n_solves} solves ({self.message})"),
+                 f"  {'parameter':<{w}} {'start':>13} {'fitted':>15} {'std error':>11} {'rel.':>9}"]
+        for i, n in enumerate(self.names):
+            se = self.stderr[n]
+            rel = se / abs(self.x[i]) if self.x[i] != 0 else math.inf
+            lines.append(f"  {n:<{w}} {self.start[n]:>13.6g} {self.x[i]:>15.9g} {se:>11.4g} "
+                         f"{100 * rel:>8.3g}%")
+        lines.append(f"misfit r^T r = {self.misfit:.6g}; sigma = {self.sigma:.4g} per weighted "
+                     f"datum ({self.n_data - len(self.names)} degrees of freedom); "
+                     f"cond(J^T J) = {self.condition:.3g}")
+        lines.append("correlation:")
+        lines.append("  " + " " * w + "".join(f" {n[:8]:>8}" for n in self.names))
+        for i, n in enumerate(self.names):
+            lines.append(f"  {n:<{w}}" + "".join(f" {v:>8.4f}" for v in self.correlation[i]))
+        lines += [f"warning: {m}" for m in self.warnings]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.table()
+
+
+def _statistics(pt: Point, n_data: int, names: list) -> tuple:
+    """(covariance, correlation, condition, sigma, warning messages) at the optimum."""
+    r, J = pt.r, pt.J
+    n = len(names)
+    dof = n_data - n
+    F = float(r @ r)
+    sigma = math.sqrt(F / dof) if dof > 0 else math.nan
+    col = np.linalg.norm(J, axis=0)
+    nan = np.full((n, n), math.nan)
+    messages = []
+    dead = [names[i] for i in range(n) if not col[i] > 0]
+    if dead:
+        messages.append(f"fit: the residuals do not depend on {dead}: these parameters cannot be "
+                        "identified from these curves (J^T J singular; no standard errors)")
+        return nan, nan, math.inf, sigma, messages
+    s = np.linalg.svd(J / col, compute_uv=False)
+    condition = float((s[0] / s[-1]) ** 2) if s[-1] > 0 else math.inf
+    if condition > SINGULAR:
+        messages.append(f"fit: J^T J is singular (condition number {condition:.3g}): the "
+                        f"parameters {names} are not all identifiable from these curves; no "
+                        "standard errors")
+        return nan, nan, condition, sigma, messages
+    inv = np.linalg.inv((J / col).T @ (J / col)) / np.outer(col, col)  # (J^T J)^-1
+    d = np.sqrt(np.diag(inv))
+    corr = inv / np.outer(d, d)
+    cov = sigma ** 2 * inv if dof > 0 else nan
+    if dof <= 0:
+        messages.append(f"fit: as many data as parameters ({n_data}): no degrees of freedom are "
+                        "left to estimate the standard errors")
+    if condition > MAX_CONDITION:
+        messages.append(f"fit: J^T J is ill-conditioned (condition number {condition:.3g}, "
+                        "columns scaled): the standard errors are large and unreliable")
+    for i in range(n):
+        for j in range(i + 1, n):
+            if abs(corr[i, j]) > MAX_CORRELATION:
+                messages.append(f"fit: {names[i]} and {names[j]} are correlated (rho = "
+                                f"{corr[i, j]:.4f}): these curves identify a combination of the "
+                                "two rather than each; add a curve that separates them or fix one")
+    return cov, corr, condition, sigma, messages
+
+
+# ------------------------------------------------------------------------- fit
+def _per_name(value, names, what, default):
+    """A dict or a sequence in the order of names, as a list (``default(name)`` where missing)."""
+    if value is None:
+        return [default(n) for n in names]
+    if isinstance(value, Mapping):
+        unknown = [k for k in value if k not in names]
+        if unknown:
+            raise InputError(f"{what} names {unknown}, which are not among the parameters to fit "
+                             f"{names}")
+        return [value[n] if n in value else default(n) for n in names]
+    value = list(value)
+    if len(value) != len(names):
+        raise InputError(f"{what} has {len(value)} entries, expected {len(names)} ({names})")
+    return value
+
+
+def _bounds(bounds, names, start) -> tuple[np.ndarray, np.ndarray]:
+    pairs = _per_name(bounds, names, "bounds", lambda n: (None, None))
+    lo, hi = np.full(len(names), -math.inf), np.full(len(names), math.inf)
+    for i, pair in enumerate(pairs):
+        try:
+            a, b = (None, None) if pair is None else pair
+            lo[i] = -math.inf if a is None else float(a)
+            hi[i] = math.inf if b is None else float(b)
+        except (TypeError, ValueError):
+            raise InputError(f"the bounds of {names[i]!r} must be a pair (low, high) of numbers or "
+                             f"None, got {pair!r}") from None
+        if not lo[i] < hi[i] or math.isnan(lo[i]) or math.isnan(hi[i]):
+            raise InputError(f"the bounds of {names[i]!r} are empty: ({lo[i]}, {hi[i]})")
+        if not lo[i] <= start[i] <= hi[i]:
+            raise InputError(f"the start value {names[i]} = {float(start[i])!r} is outside its bounds "
+                             f"({lo[i]}, {hi[i]})")
+    return lo, hi
+
+
+class _Stop(Exception):
+    """The budget of solves is spent."""
+
+
+def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: int | None = None,
+        method: str = "least_squares", tol: float = 1e-10, max_solves: int = 100,
+        options: NewtonOptions | None = None, solver="auto", optimizer_options: dict | None = None,
+        callback: Callable | None = None, label: str = "fit") -> FitResult:
+    """Identify parameters of a problem from measured curves, with standard errors.
+
+    Args:
+        problem: the :class:`~signorini.Problem`; its other parameters stay at their values.
+        wrt: the names of the parameters to identify.
+        curves: one or more :class:`Curve` or tuples (response, times, values[, weights]):
+            a response of :mod:`signorini.responses` measured at load factors ``times``.
+        start: the start values, a dict or a list in the order of ``wrt`` (default: the
+            problem's values).
+        bounds: (low, high) per parameter (None or +-inf: unbounded), a dict or a list.
+        steps: equal load increments; default: the fewest that put every measured time on
+            an increment (else the responses are interpolated linearly between increments).
+        method: ``"least_squares"`` (:func:`scipy.optimize.least_squares`, trust-region
+            reflective with the exact Jacobian) or ``"L-BFGS-B"`` (the misfit F and its
+            gradient 2 J^T r, F divided by its start value and x by the start's scale).
+        tol: the optimisers' tolerances (least_squares' ftol, xtol, gtol; L-BFGS-B's
+            ftol and gtol).
+        max_solves: the budget of solves (a failed one included).
+        options: :class:`~signorini.NewtonOptions` of the solves.
+        solver: linear solver of the solves.
+        optimizer_options: further SciPy options (override the above).
+        callback: ``callback(row)`` after every iteration with its :attr:`FitResult.history` row.
+        label: the solves' name in log lines and progress bars.
+
+    Returns:
+        A :class:`FitResult` (its :meth:`~FitResult.table` for a person).
+
+    Raises:
+        InputError: a parameter, curve, bound or option that cannot be used (before any
+            solve), or a start point the problem rejects.
+        ConvergenceError: the solve at the start point fails.
+
+    A failed solve at a trial point does not end the fit: least squares gets
+    infinite residuals there and shrinks its trust region; L-BFGS-B gets the
+    penalty of :class:`~signorini.Objective` (a large value, the gradient
+    pointing back to the last good point). Every iteration is logged on the
+    ``signorini`` logger (INFO) as :func:`~signorini.minimize` does.
+    """
+    import scipy.optimize as so  # lazy: heavy, and only a fit needs it
+
+    t_start = time.perf_counter()
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if not (isinstance(max_solves, (int, np.integer)) and max_solves >= 1):
+        raise InputError(f"max_solves must be a positive integer, got {max_solves!r}")
+    if not (isinstance(tol, (int, float)) and 0 < tol < 1):
+        raise InputError(f"tol must be a number in (0, 1), got {tol!r}")
+    mis = Misfit(problem, wrt, curves, steps=steps, options=options, solver=solver, label=label)
+    names = mis.names
+    x0 = _numbers(_per_name(start, names, "start", lambda n: problem.params[n]), "start")
+    lo, hi = _bounds(bounds, names, x0)
+    scale = np.where(x0 != 0, np.abs(x0), 1.0)
+
+    first = mis.evaluate(x0)
+    if not first.ok:
+        where = dict(zip(names, x0.tolist()))
+        if first.status == "failed":
+            raise ConvergenceError(f"the fit cannot start: the solve at the start {where} failed: "
+                                   f"{first.reason}", partial=first.solution) from first.error
+        raise InputError(f"the fit cannot start: the start {where} is invalid: {first.reason}") \
+            from first.error
+    history: list[dict] = []
+
+    def iteration(x):
+        pt = mis.evaluate(x)
+        g = 2.0 * pt.J.T @ pt.r
+        free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))  # projected on the bounds
+        row = {"iteration": len(history), "F": pt.F, "grad_norm": float(np.linalg.norm(g[free])),
+               "x": pt.x.tolist(), "solves": mis.n_solves, "time": time.perf_counter() - t_start}
+        history.append(row)
+        log.info("%s iteration %d: F = %.10g, |grad| = %.4g, %d solves", label, row["iteration"],
+                 row["F"], row["grad_norm"], row["solves"])
+        if callback is not None:
+            callback(row)
+
+    def budget():
+        if mis.n_solves >= max_solves:
+            raise _Stop
+
+    success, message = False, ""
+    try:
+        if method == "least_squares":
+            def residuals(x):
+                if mis.point(x).tobytes() not in mis._kept:
+                    budget()
+                return mis.residuals(x)
+
+            def jacobian(x, *_):
+                iteration(mis.point(x))  # least squares asks for J at each accepted point
+                return mis.jacobian(x)
+
+            opts = {"ftol": tol, "xtol": tol, "gtol": tol, "max_nfev": max_solves, "x_scale": scale}
+            opts.update(optimizer_options or {})
+            res = so.least_squares(residuals, x0, jac=jacobian, bounds=(lo, hi), method="trf", **opts)
+        else:
+            F0 = first.F if first.F > 0 else 1.0
+
+            def value_and_gradient(z):
+                x = z * scale
+                if mis.point(x).tobytes() not in mis._kept:
+                    budget()
+                pt = mis.evaluate(x)
+                if pt.ok:
+                    return pt.F / F0, 2.0 * (pt.J.T @ pt.r) * scale / F0
+                F, g = mis._penalty(mis.point(x), pt.error)
+                return F / F0, g * scale / F0
+
+            iteration(x0)
+            opts = {"ftol": tol, "gtol": tol, "maxfun": max_solves, "maxiter": max_solves}
+            opts.update(optimizer_options or {})
+            res = so.minimize(value_and_gradient, x0 / scale, jac=True, method="L-BFGS-B",
+                              bounds=list(zip(lo / scale, hi / scale)), options=opts,
+                              callback=lambda zk, *a: iteration(mis.point(zk * scale)))
+        success, message = bool(res.success), str(res.message)
+    except _Stop:
+        message = f"the budget of {max_solves} solves is spent (max_solves)"
+    best = mis.best
+    if history[-1]["x"] != best.x.tolist():
+        iteration(best.x)
+    cov, corr, condition, sigma, messages = _statistics(best, mis.n_data, names)
+    at = [n for i, n in enumerate(names) if best.x[i] - lo[i] <= 1e-9 * scale[i]
+          or hi[i] - best.x[i] <= 1e-9 * scale[i]]
+    if at:
+        messages.append(f"fit: {at} ended at a bound: the standard errors assume an optimum inside "
+                        "the bounds")
+    if not success:
+        messages.append(f"fit: the optimiser did not converge: {message}")
+    se = np.sqrt(np.diag(cov))
+    result = FitResult(
+        names=names, x=best.x.copy(), values=dict(zip(names, best.x.tolist())),
+        start=dict(zip(names, x0.tolist())), stderr=dict(zip(names, se.tolist())),
+        covariance=cov, correlation=corr, sigma=sigma, misfit=best.F, residuals=best.r.copy(),
+        jacobian=best.J.copy(), n_data=mis.n_data, condition=condition, fitted=best.fitted,
+        curves=mis.curves, bounds=list(zip(lo.tolist(), hi.tolist())), history=history,
+        n_solves=mis.n_solves, n_failed=mis.n_failed, success=success, message=message,
+        method=method, time=time.perf_counter() - t_start, warnings=list(mis.warnings),
+        solution=best.solution, evaluations=mis.records, label=label)
+    for m in messages:
+        checks.warn(result, m)
+    return result
