@@ -38,7 +38,7 @@ import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -49,6 +49,7 @@ from ..model import checks
 from ..params import check_names
 from ..responses import Response
 from .evaluation import ObjectiveEvaluation
+from .fit_result import FitResult, statistics
 from .history import Evaluation
 
 log = logging.getLogger("signorini")
@@ -61,12 +62,6 @@ METHODS = ("least_squares", "L-BFGS-B")
 MAX_STEPS = 1000
 #: a measured time within this of an increment's load factor is that increment
 TIME_TOL = 1e-9
-#: above this |correlation| of two parameters the fit warns
-MAX_CORRELATION = 0.99
-#: above this condition number of J^T J (columns scaled to unit norm) the fit warns;
-#: above SINGULAR it takes J^T J as singular (no covariance)
-MAX_CONDITION = 1e10
-SINGULAR = 1e14
 #: solves kept (value and Jacobian at the same point share one)
 KEPT_POINTS = 4
 
@@ -366,133 +361,6 @@ class Misfit(ObjectiveEvaluation):
         return y, dy
 
 
-# ---------------------------------------------------------------------- result
-@dataclass(eq=False)
-class FitResult:
-    """The result of :func:`fit`.
-
-    Attributes:
-        names: the parameters, in order.
-        x: (n,) the fitted values; ``values``: the same as a dict.
-        start: the start values (dict).
-        stderr: name -> standard error sqrt(C_ii) (nan when J^T J is singular or m = n).
-        covariance: (n, n) C = s^2 (J^T J)^-1.
-        correlation: (n, n) C_ij / (SE_i SE_j) (from (J^T J)^-1, also when s = 0).
-        sigma: s = sqrt(r^T r / (m - n)), the residuals' scale (1 when the weights are
-            1 / variance and the model fits).
-        misfit: F = r^T r at the optimum.
-        residuals: (m,) the weighted residuals at the optimum; ``jacobian`` (m, n) their J.
-        n_data: m, the measured points of positive weight.
-        condition: the condition number of J^T J with columns scaled to unit norm.
-        fitted: per curve, the model's values at its times at the optimum.
-        history: one dict per iteration (0 = the start): ``iteration, F, grad_norm, x,
-            solves, time``.
-        n_solves, n_failed: solves of the fit, and how many failed (penalised).
-        success, message: the optimiser's verdict.
-        warnings: the fit's warnings (ill-conditioning, bounds) and the solves'.
-        solution: the :class:`~signorini.Solution` at the optimum.
-        evaluations: every solve's :class:`~signorini.design.history.Evaluation`.
-    """
-
-    names: list
-    x: np.ndarray
-    values: dict
-    start: dict
-    stderr: dict
-    covariance: np.ndarray
-    correlation: np.ndarray
-    sigma: float
-    misfit: float
-    residuals: np.ndarray
-    jacobian: np.ndarray
-    n_data: int
-    condition: float
-    fitted: list
-    curves: list
-    bounds: list
-    history: list
-    n_solves: int
-    n_failed: int
-    success: bool
-    message: str
-    method: str
-    time: float = 0.0
-    warnings: list = field(default_factory=list)
-    solution: object = field(default=None, repr=False)
-    evaluations: list = field(default_factory=list, repr=False)
-    label: str = "fit"
-
-    @property
-    def iterations(self) -> int:
-        return len(self.history) - 1
-
-    def table(self) -> str:
-        """The fitted values, standard errors and correlations, for a person."""
-        w = max(9, *(len(n) for n in self.names))
-        lines = [(f"fit of {', '.join(self.names)} to {len(self.curves)} curve(s), {self.n_data} data "
-                  f"({self.method}): {'converged' if self.success else 'NOT converged'} in "
-                  f"{self.iterations} iterations, {self.n_solves} solves ({self.message})"),
-                 f"  {'parameter':<{w}} {'start':>13} {'fitted':>15} {'std error':>11} {'rel.':>9}"]
-        for i, n in enumerate(self.names):
-            se = self.stderr[n]
-            rel = se / abs(self.x[i]) if self.x[i] != 0 else math.inf
-            lines.append(f"  {n:<{w}} {self.start[n]:>13.6g} {self.x[i]:>15.9g} {se:>11.4g} "
-                         f"{100 * rel:>8.3g}%")
-        lines.append(f"misfit r^T r = {self.misfit:.6g}; sigma = {self.sigma:.4g} per weighted "
-                     f"datum ({self.n_data - len(self.names)} degrees of freedom); "
-                     f"cond(J^T J) = {self.condition:.3g}")
-        lines.append("correlation:")
-        lines.append("  " + " " * w + "".join(f" {n[:8]:>8}" for n in self.names))
-        for i, n in enumerate(self.names):
-            lines.append(f"  {n:<{w}}" + "".join(f" {v:>8.4f}" for v in self.correlation[i]))
-        lines += [f"warning: {m}" for m in self.warnings]
-        return "\n".join(lines)
-
-    def __str__(self) -> str:
-        return self.table()
-
-
-def _statistics(pt: Point, n_data: int, names: list) -> tuple:
-    """(covariance, correlation, condition, sigma, warning messages) at the optimum."""
-    r, J = pt.r, pt.J
-    n = len(names)
-    dof = n_data - n
-    F = float(r @ r)
-    sigma = math.sqrt(F / dof) if dof > 0 else math.nan
-    col = np.linalg.norm(J, axis=0)
-    nan = np.full((n, n), math.nan)
-    messages = []
-    dead = [names[i] for i in range(n) if not col[i] > 0]
-    if dead:
-        messages.append(f"fit: the residuals do not depend on {dead}: these parameters cannot be "
-                        "identified from these curves (J^T J singular; no standard errors)")
-        return nan, nan, math.inf, sigma, messages
-    s = np.linalg.svd(J / col, compute_uv=False)
-    condition = float((s[0] / s[-1]) ** 2) if s[-1] > 0 else math.inf
-    if condition > SINGULAR:
-        messages.append(f"fit: J^T J is singular (condition number {condition:.3g}): the "
-                        f"parameters {names} are not all identifiable from these curves; no "
-                        "standard errors")
-        return nan, nan, condition, sigma, messages
-    inv = np.linalg.inv((J / col).T @ (J / col)) / np.outer(col, col)  # (J^T J)^-1
-    d = np.sqrt(np.diag(inv))
-    corr = inv / np.outer(d, d)
-    cov = sigma ** 2 * inv if dof > 0 else nan
-    if dof <= 0:
-        messages.append(f"fit: as many data as parameters ({n_data}): no degrees of freedom are "
-                        "left to estimate the standard errors")
-    if condition > MAX_CONDITION:
-        messages.append(f"fit: J^T J is ill-conditioned (condition number {condition:.3g}, "
-                        "columns scaled): the standard errors are large and unreliable")
-    for i in range(n):
-        for j in range(i + 1, n):
-            if abs(corr[i, j]) > MAX_CORRELATION:
-                messages.append(f"fit: {names[i]} and {names[j]} are correlated (rho = "
-                                f"{corr[i, j]:.4f}): these curves identify a combination of the "
-                                "two rather than each; add a curve that separates them or fix one")
-    return cov, corr, condition, sigma, messages
-
-
 # ------------------------------------------------------------------------- fit
 def _per_name(value, names, what, default):
     """A dict or a sequence in the order of names, as a list (``default(name)`` where missing)."""
@@ -656,7 +524,7 @@ def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: 
     best = mis.best
     if history[-1]["x"] != best.x.tolist():
         iteration(best.x)
-    cov, corr, condition, sigma, messages = _statistics(best, mis.n_data, names)
+    cov, corr, condition, sigma, messages = statistics(best.r, best.J, mis.n_data, names)
     at = [n for i, n in enumerate(names) if best.x[i] - lo[i] <= 1e-9 * scale[i]
           or hi[i] - best.x[i] <= 1e-9 * scale[i]]
     if at:
