@@ -355,7 +355,7 @@ BAD = [
     (_sub('type = "rectangle"', 'file = "nowhere.msh"\ntype = "rectangle"'), sg.InputError,
      "give either file"),
     (_sub('type = "linear_elastic"', 'type = "linear_elastik"'), sg.InputError,
-     "[material] type: 'linear_elastik' is not one of 'linear_elastic', 'neo_hooke' "
+     "[material] type: 'linear_elastik' is not one of 'linear_elastic', 'neo_hooke', 'j2' "
      "(did you mean 'linear_elastic'?)"),
     (_sub("nu = 0.3", "nu = 0.6"), sg.InputError, "[material] Poisson's ratio"),
     (_sub("nu = 0.3", 'nu = "0.3"'), sg.InputError, "[params] nu: expected a number"),
@@ -367,7 +367,8 @@ BAD = [
      "[[contact]] #1 edges: 'tp' is not an edge set of the mesh"),
     (_sub('radius = "R", ', ""), sg.InputError, "[[contact]] #1 obstacle missing required key 'radius'"),
     (_sub('type = "circle"', 'type = "sphere"'), sg.InputError,
-     "[[contact]] #1 obstacle type: 'sphere' is not one of 'circle', 'line'"),
+     "[[contact]] #1 obstacle type: 'sphere' is an obstacle of 3-D problems; the mesh is 2-D, "
+     "whose obstacles are 'circle', 'line', 'implicit' (line 34)"),
     (_sub('method = "al"', 'method = "penalty"'), sg.InputError, "[[contact]] #1 missing required key 'eps'"),
     (_sub('method = "al"', 'method = "al"\nmu = 0.3'), sg.InputError,
      "[[contact]] #1 mu: applies only to method = \"coulomb\""),
@@ -376,7 +377,7 @@ BAD = [
      "[[contact]] #1 the augmented-Lagrangian parameter must be positive"),
     (_sub('value = "P"', 'value = ["P", 0.0]'), sg.InputError, "[[load]] #1 value: a pressure is a scalar"),
     (_sub('type = "pressure"', 'type = "traction"'), sg.InputError,
-     "[[load]] #1 value: expected a list of two numbers"),
+     "[[load]] #1 value: expected a list of 2 numbers [a, b] (the mesh is 2-D)"),
     (_sub("resultant = true", 'resultant = "yes"'), sg.InputError,
      "[[load]] #1 resultant: expected true or false"),
     (_sub("steps = 1", "steps = 0"), sg.InputError, "[solve] steps: must be >= 1"),
@@ -449,12 +450,11 @@ def _mesh_file(tmp_path, kind):
     return name
 
 
-NOT_3D = ("problem files take 2-D meshes only (3-D meshes in problem files are not supported "
-          "yet): mesh a plane section of the body, or set up the 3-D problem in Python")
+NOT_3D = "; [mesh] dim = 2 asks for a 2-D mesh"
 BAD_MESH_FILES = [
     # (mesh file, fragments of the message after "<toml>: [mesh] file = '<name>': <path>: ")
     ("hexahedra", ["a 3-D mesh (cells: 2 hexahedron, 2 quad), where a 2-D mesh of quadrilaterals "
-                   "in the z = 0 plane is expected; " + NOT_3D]),
+                   "in the z = 0 plane is expected" + NOT_3D]),
     ("tetrahedra", ["a 3-D mesh (cells: 12 tetra)", NOT_3D]),
     ("wedges", ["a 3-D mesh (cells: 1 wedge)", NOT_3D]),
     ("lines", ["no cells of a body (cells: 2 line); a mesh file needs the cells of a body"]),
@@ -471,7 +471,7 @@ def test_mesh_file_of_the_wrong_kind(tmp_path, kind, fragments):
     body, triangles, empty, not a mesh) is an InputError naming the problem file,
     the key, the mesh file and what is expected, before anything is solved."""
     name = _mesh_file(tmp_path, kind)
-    f = _write(tmp_path, re.sub(r"(?s)\[mesh\].*?\n\n", f'[mesh]\nfile = "{name}"\n\n', BLOCK))
+    f = _write(tmp_path, re.sub(r"(?s)\[mesh\].*?\n\n", f'[mesh]\nfile = "{name}"\ndim = 2\n\n', BLOCK))
     with pytest.raises(sg.InputError) as err:
         pf.load(f)
     msg = str(err.value)
@@ -488,7 +488,7 @@ def test_run_command_on_a_3d_or_cell_less_mesh_exits_2(tmp_path, capsys, kind):
     from signorini.app.cli import main
 
     name = _mesh_file(tmp_path, kind)
-    f = _write(tmp_path, re.sub(r"(?s)\[mesh\].*?\n\n", f'[mesh]\nfile = "{name}"\n\n', BLOCK))
+    f = _write(tmp_path, re.sub(r"(?s)\[mesh\].*?\n\n", f'[mesh]\nfile = "{name}"\ndim = 2\n\n', BLOCK))
     capsys.readouterr()
     assert main(["run", str(f), "--out", str(tmp_path / "out"), "-q"]) == 2
     err = capsys.readouterr().err

@@ -48,6 +48,10 @@ def _jsonable(o):
 def _response_values(sol, problem: Problem, r: Response) -> dict:
     """Value and DDM sensitivities of one response at the last increment."""
     names = list(sol.names)
+    if r.type not in ("max_pressure", "normal_force", "displacement", "reaction") or \
+            problem.mesh.nodes.shape[1] == 3 and r.type != "normal_force":
+        val, d = r.public().of(sol, -1)
+        return {"value": val, "sensitivities": {n: float(d[n]) for n in names}}
     if r.type == "max_pressure":
         c = sol.contact(-1, r.surface)
         j = int(np.argmax(c["p_N"]))
@@ -78,8 +82,11 @@ def _response_values(sol, problem: Problem, r: Response) -> dict:
 def _contact_csv(sol, k: int, path: Path):
 
     c = sol.contact(-1, k)
-    cols = {"node": c["node"], "x_ref": c["x_ref"][:, 0], "y_ref": c["x_ref"][:, 1],
-            "x": c["x"][:, 0], "y": c["x"][:, 1], "p_N": c["p_N"], "p_T": c["p_T"], "gap": c["gap"]}
+    dim = c["x_ref"].shape[1]
+    cols = {"node": c["node"]}
+    cols.update({f"{a}_ref": c["x_ref"][:, i] for i, a in enumerate("xyz"[:dim])})
+    cols.update({a: c["x"][:, i] for i, a in enumerate("xyz"[:dim])})
+    cols.update({"p_N": c["p_N"], "p_T": c["p_T"], "gap": c["gap"]})
     for n in sol.names:
         cols[f"dp_N_d{n}"] = c[f"dp_N_d{n}"]
     if "status" in c:
@@ -150,9 +157,10 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
     if given:
         cfg = dataclasses.replace(cfg, options=dataclasses.replace(cfg.options, **given))
     out = prepare_output(out)
-    n_contact = sum(len(np.unique(problem.mesh.edge_set(c.edges))) * c.method.n_multipliers
-                    for c in problem.contact)
-    check_size(2 * problem.mesh.n_nodes + n_contact, force=force_size, what=str(cfg.path),
+    dim = int(problem.mesh.nodes.shape[1])
+    sets = problem.mesh.face_sets if dim == 3 else problem.mesh.edge_sets
+    n_contact = sum(len(np.unique(sets[c.edges])) * c.method.n_multipliers for c in problem.contact)
+    check_size(dim * problem.mesh.n_nodes + n_contact, force=force_size, what=str(cfg.path),
                solver=solver, hint="a coarser mesh")
     summary = {
         "file": str(cfg.path), "title": cfg.title, "status": "running",
