@@ -26,6 +26,7 @@ COMMANDS = {
     "optimize-forging": "signorini.app.commands.optimize_forging",
     "sweep": "signorini.app.commands.sweep",
     "run": "signorini.app.commands.run",
+    "fit": "signorini.app.commands.fit",
     "cache": "signorini.app.commands.cache",
 }
 

@@ -133,7 +133,8 @@ naming the file and the key, e.g. ``problem.toml: [material] unknown key
 'Ee'; allowed: E, nu, type``.
 """
 
+from .fitrun import fit
 from .run import run
 from .schema import Response, RunConfig, load
 
-__all__ = ["Response", "RunConfig", "load", "run"]
+__all__ = ["Response", "RunConfig", "fit", "load", "run"]
