@@ -66,7 +66,9 @@ class Expression:
 
 def _eval(node, env):
     if isinstance(node, ast.Constant):
-        return float(node.value)
+        # an integer stays one: x ** 2 is then JAX's integer power, smooth to every
+        # order at x = 0 (x ** 2.0 is not: its third derivative there is NaN)
+        return node.value if isinstance(node.value, int) else float(node.value)
     if isinstance(node, ast.Name):
         return env[node.id] if node.id in env else _CONSTS[node.id]
     if isinstance(node, ast.UnaryOp):

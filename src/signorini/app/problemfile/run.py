@@ -94,7 +94,14 @@ def _contact_csv(sol, k: int, path: Path):
             cols[f"dp_T_d{n}"] = c[f"dp_T_d{n}"]
         cols["status"] = c["status"]
         cols["slip"] = c["slip"]
-    io.write_csv(path, cols)
+    flat = {}
+    for k, v in cols.items():  # 3-D friction: tangential vectors, one column per component
+        v = np.asarray(v)
+        if v.ndim == 2:
+            flat.update({f"{k}_{i}": v[:, i] for i in range(v.shape[1])})
+        else:
+            flat[k] = v
+    io.write_csv(path, flat)
     return c
 
 
