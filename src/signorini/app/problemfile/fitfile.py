@@ -87,7 +87,7 @@ def read_csv(path: Path, x: str, y: str, weight: str | None, label: str, where: 
         k = int(bad[0]) + 1
         line = numbered[k + 1][0]
         raise InputError(f"{label}: {where} {path.name} line {line}, column {x!r}: the abscissae "
-                         f"must increase; {xs[k]!r} follows {xs[k - 1]!r}")
+                         f"must increase; {float(xs[k])!r} follows {float(xs[k - 1])!r}")
     w = np.array(data["weight"]) if "weight" in data else None
     return xs, np.array(data["y"]), w
 
