@@ -35,8 +35,9 @@ COMMANDS = {
 OUTPUT_HELPER = ("hertz", "hertz-friction", "hertz3d", "forging", "forging3d", "cylinders", "spheres",
                  "ironing", "ironing3d")
 
-#: the commands a sweep can run at every point
-SWEEPABLE = tuple(n for n in COMMANDS if n not in ("sweep", "cache"))
+#: the commands a sweep can run at every point (a fit is an optimisation of its own,
+#: with its own history and --resume, not one solve per point)
+SWEEPABLE = tuple(n for n in COMMANDS if n not in ("sweep", "cache", "fit"))
 
 #: old command names, accepted for one release with a notice: old -> new
 RENAMED = {"optimise-forging": "optimize-forging"}

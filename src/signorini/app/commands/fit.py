@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 
+from .. import problemfile
 from ..options import Formatter, solver_options
 
 NAME = "fit"
@@ -33,8 +34,6 @@ def add_parser(sub) -> None:
 
 def execute(args) -> int:
     """Run the command for parsed ``args``; the exit code."""
-    from .. import problemfile  # noqa: PLC0415
-
     quiet = getattr(args, "quiet", False)
 
     def progress(row):

@@ -18,7 +18,7 @@ from ...design.fit import Curve, fit as fit_curves
 from ...errors import InputError, SignoriniWarning
 from ...post import files as io
 from ...post.plots import save, subplots
-from ..runner import prepare_output
+from ..runner import note_run, prepare_output
 from .schema import load
 
 __all__ = ["HISTORY", "fit"]
@@ -101,6 +101,8 @@ def fit(path, out, *, solver="auto", progress=None, resume: bool = False,
         raise InputError(f"{cfg.path}: no [fit] section; add [fit.parameters] and [[fit.curve]] "
                          "tables (docs/problem-files.md, Fits) or use signorini run")
     out = prepare_output(out)
+    note_run(out, f"the fit's history so far is kept in {HISTORY} and fit_history.csv; "
+                  f"signorini fit {cfg.path} --out {out} --resume continues it")
     names = list(spec.names)
     before = _previous(out, names) if resume else []
     start = dict(zip(names, before[-1]["x"])) if before else dict(spec.start)

@@ -4,6 +4,7 @@ and their motions along the load path (the schema: :mod:`signorini.app.problemfi
 
 from __future__ import annotations
 
+import ast
 import warnings
 from pathlib import Path
 
@@ -289,5 +290,4 @@ def obstacle(rd: Reader, where: str, data):
 
 
 def _uses_coords(e) -> bool:
-    import ast  # noqa: PLC0415
     return any(isinstance(n, ast.Name) and n.id in e.coords for n in ast.walk(e._tree))

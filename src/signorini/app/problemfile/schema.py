@@ -18,6 +18,7 @@ from ...errors import InputError, UnknownParameterError
 from ...fem.loads import Fixed, Pressure, Traction
 from ...model.problem import Problem
 from . import parts
+from .fitfile import read_fit
 from .reader import Reader, Table, kind, read_toml
 
 __all__ = ["Response", "RunConfig", "load"]
@@ -367,7 +368,6 @@ def load(path, *, force_size: bool = False, solver="auto") -> tuple[Problem, Run
     out = Table(rd, "[output]", doc.get("output", {}), {"vtu", "pvd", "csv"})
     fit = None
     if "fit" in doc:
-        from .fitfile import read_fit  # noqa: PLC0415  (only a file with [fit])
         fit = read_fit(rd, doc["fit"], responses)
     cfg = RunConfig(path=path, title=title, steps=steps, sensitivities=sens, options=opts,
                     responses=responses, vtu=out.boolean("vtu", True), pvd=out.boolean("pvd", True),
