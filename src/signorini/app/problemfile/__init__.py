@@ -2,8 +2,21 @@
 
 :func:`load` reads a file into a :class:`~signorini.model.problem.Problem` and a
 :class:`RunConfig`; :func:`run` also solves it (with DDM sensitivities) and
-writes the results into a directory. ``signorini run FILE --out DIR`` calls
-:func:`run`.
+writes the results into a directory; :func:`fit` identifies the parameters of
+its ``[fit]`` section from measured curves (:func:`signorini.fit`).
+``signorini run FILE --out DIR`` calls :func:`run`, ``signorini fit FILE --out
+DIR`` :func:`fit`.
+
+The full schema, with 3-D meshes (boxes, hexahedral and tetrahedral mesh files),
+several bodies (``[[body]]``), 2-D and 3-D obstacles (implicit surfaces given by
+an expression, parsed safely by :mod:`.expr`), obstacle motions along load
+paths, two-body pairs (``[[pair]]``), the responses of :mod:`signorini.responses`
+by name and fits: docs/problem-files.md. The modules: :mod:`.reader` (strict
+tables, the key's line in every error), :mod:`.parts` (meshes, bodies,
+materials, obstacles), :mod:`.schema` (the rest and :func:`load`),
+:mod:`.fitfile` (``[fit]`` and its CSV files), :mod:`.run`, :mod:`.fitrun`.
+
+The 2-D schema in short (the first example of docs/problem-files.md).
 
 Example (``block.toml``: an elastic block pressed against a rigid cylinder,
 half model with a symmetry line)::
@@ -75,9 +88,8 @@ name of a parameter of ``[params]``, which makes it a design variable):
 ``[mesh]`` (required)
     either ``file = "body.msh"`` (relative to the TOML file; read by
     :func:`signorini.fem.meshfile.read_mesh`: gmsh physical groups of lines become edge
-    and node sets, of points node sets, plus ``all``; a 2-D mesh of quadrilaterals:
-    a 3-D mesh, or a file without quadrilaterals, is an error: 3-D meshes in problem
-    files are not supported yet), or
+    and node sets, of points node sets, plus ``all``; a 2-D mesh of quadrilaterals,
+    or a 3-D mesh: docs/problem-files.md), or
     ``type = "rectangle"``, ``x = [x0, x1]``, ``y = [y0, y1]`` (numbers),
     ``nx``, ``ny`` (cells, integers >= 1): sets ``left``, ``right``,
     ``bottom``, ``top`` (edges and nodes) and ``all`` (nodes). A parameter
@@ -108,7 +120,8 @@ name of a parameter of ``[params]``, which makes it a design variable):
     ``max_cuts``, ``predictor`` (``"extrapolate"`` | ``"none"``) (defaults of
     :class:`~signorini.algorithms.newton.NewtonOptions`).
 ``[[response]]``
-    ``name`` (unique), ``type``: ``"max_pressure"`` (largest p_N of a surface,
+    ``name`` (unique), ``type``: one of :mod:`signorini.responses` by name
+    (``contact_force``, ``contact_area``, ``pressure_norm``, ... docs/problem-files.md), or ``"max_pressure"`` (largest p_N of a surface,
     with its DDM sensitivity at that node) or ``"normal_force"`` (sum of p_N
     A_S over the surface) with optional ``surface`` (edges of a
     ``[[contact]]``, default the first); ``"displacement"`` (mean of a
