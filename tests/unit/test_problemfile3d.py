@@ -356,3 +356,92 @@ def test_run_command_on_a_bad_3d_file_exits_2_without_traceback(tmp_path, capsys
     err = capsys.readouterr().err
     assert "is not a face set of the mesh" in err and "(line 26)" in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------- 2-D implicit, paths
+STRIP = """\
+[params]
+E = 100.0
+nu = 0.3
+R = 5.0
+d = 0.02
+
+[mesh]
+type = "rectangle"
+x = [-1.0, 1.0]
+y = [-1.0, 0.0]
+nx = 16
+ny = 4
+
+[material]
+type = "linear_elastic"
+E = "E"
+nu = "nu"
+
+[[fixed]]
+set = "bottom"
+component = "x"
+
+[[fixed]]
+set = "bottom"
+component = "y"
+
+[[contact]]
+edges = "top"
+eps = 400.0
+obstacle = { type = "circle", radius = "R", centre = [0.0, "R"], motion = [0.0, "-d"] }
+
+[solve]
+sensitivities = ["R", "d"]
+rtol = 1e-12
+"""
+
+
+def test_2d_implicit_circle_equals_the_circle(tmp_path):
+    """In 2-D an implicit surface is an expression of x, y: a circle written as one
+    gives the Circle's solution and sensitivities to round-off."""
+    implicit = STRIP.replace('type = "circle", radius = "R", centre = [0.0, "R"]',
+                             'type = "implicit", expression = "hypot(x, y) - R", origin = [0.0, "R"]')
+    sols = []
+    for k, text in enumerate((STRIP, implicit)):
+        problem, cfg = pf.load(_write(tmp_path, text, f"s{k}.toml"))
+        sols.append(sg.solve(problem, wrt=list(cfg.sensitivities), options=cfg.options))
+    assert isinstance(problem.contact[0].obstacle, sg.Implicit)
+    assert (sols[0].contact()["p_N"] > 0).sum() >= 3
+    _same(sols[1], sols[0], ["R", "d"])
+
+
+def test_paths_rotations_and_a_displacement_abscissa_are_read(tmp_path):
+    """A support along a table, an obstacle's rotation legs, and a fit curve against
+    a displacement d t (scale = d) become the library's objects and load factors."""
+    text = BOX.replace('component = "z"', 'component = "z"\nvalue = "-d"\n'
+                       'table = { times = [0.0, 0.5, 1.0], values = [0.0, 1.0, 0.0] }')
+    text = text.replace('motion = [0.0, 0.0, "-d"]',
+                        'rotation = [{ vector = [0.0, 0.0, 0.1], ramp = [0.5, 1.0] }]')
+    problem, cfg = pf.load(_write(tmp_path, text))
+    (fx,) = problem.fixed
+    assert fx.ramp == sg.Table((0.0, 0.5, 1.0), (0.0, 1.0, 0.0)) and callable(fx.value)
+    assert fx.value({"d": 0.01}) == -0.01
+    ob = problem.contact[0].obstacle
+    assert ob.rotation == (((0.0, 0.0, 0.1), sg.Ramp(0.5, 1.0)),)
+    (tmp_path / "f.csv").write_text("depth,F\n0.0025,1.0\n0.005,2.0\n0.01,3.0\n")
+    text += """
+[[response]]
+name = "F"
+type = "contact_force"
+component = "z"
+
+[fit.parameters]
+E = { start = 80.0 }
+
+[[fit.curve]]
+response = "F"
+file = "f.csv"
+x = "depth"
+y = "F"
+scale = 0.01
+"""
+    problem, cfg = pf.load(_write(tmp_path, text))
+    (c,) = cfg.fit.curves
+    np.testing.assert_allclose(c.times, [0.25, 0.5, 1.0], rtol=1e-15)
+    assert cfg.fit.start == {"E": 80.0} and cfg.fit.bounds == {"E": (-np.inf, np.inf)}
