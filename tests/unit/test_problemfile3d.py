@@ -153,6 +153,11 @@ def test_two_bodies_3d_file_equals_the_api_script(tmp_path):
     assert s["responses"]["F"]["value"] == pytest.approx(F, rel=1e-12)
     assert s["responses"]["F"]["sensitivities"]["P"] == pytest.approx(dF["P"], rel=1e-10)
     assert s["mesh"]["dofs"] == ref.model.n_dof
+    # adjoint = true: the gradient w.r.t. every parameter by one adjoint pass = DDM's
+    adj = s["responses"]["F"]["adjoint"]
+    assert set(adj) == {"E1", "E2", "nu", "P"}
+    assert adj["P"] == pytest.approx(dF["P"], rel=1e-10)
+    assert abs(adj["E2"]) < 1e-12 and abs(adj["E1"]) < 1e-12  # a pressure's resultant
 
 
 def test_bodies_named_by_the_physical_volumes_of_a_gmsh_file(tmp_path):

@@ -14,6 +14,7 @@ from ...errors import SolverError
 from ...model.problem import Problem
 from ..._jax import jnp
 from ...algorithms.stepping import solve
+from ...design.gradient import gradient
 from ...linsolve import check_size
 from ...post import files as io
 from ... import timing
@@ -124,6 +125,10 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
     summary["contact"] = surfaces
     summary["responses"] = {r.name: {"type": r.type, **_response_values(sol, problem, r)}
                             for r in cfg.responses}
+    for r in cfg.responses:
+        if r.adjoint and sol.status == "converged":  # one backward pass for every parameter
+            g = gradient(problem, r.public(), list(problem.params), solution=sol, options=cfg.options)
+            summary["responses"][r.name]["adjoint"] = {n: float(v) for n, v in g.grad.items()}
     if cfg.vtu:
         io.write_vtu(sol, out / f"{cfg.stem}.vtu")
         files.append(f"{cfg.stem}.vtu")

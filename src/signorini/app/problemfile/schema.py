@@ -56,6 +56,7 @@ class Response:
     node_set: str | None = None
     component: int | None = None
     order: float = 8.0
+    adjoint: bool = False  #: also its gradient w.r.t. every parameter by the adjoint method
 
     def public(self) -> public.Response:
         """The :mod:`signorini.responses` object of this response (what sg.fit takes)."""
@@ -273,23 +274,26 @@ def _responses(rd: Reader, items: list, mesh, contacts, fixed) -> tuple[Response
     out, names = [], set()
     for k, data in enumerate(items):
         where = f"[[response]] #{k + 1}"
-        t = Table(rd, where, data, {"name", "type", "surface", "set", "component", "order"},
+        t = Table(rd, where, data, {"name", "type", "surface", "set", "component", "order", "adjoint"},
                   required=("name", "type"))
+        adjoint = t.boolean("adjoint", False)
+        if adjoint and t.get("type", None) == "normal_force":
+            raise t.err("adjoint", "normal_force has no adjoint here; use type = \"contact_force\"")
         name = t.string("name")
         if name in names:
             raise t.err("name", f"{name!r} is used by two responses; give each a unique name")
         names.add(name)
         ty = t.string("type", choices=_RESPONSE_TYPES)
         if ty in _SURFACE:
-            allowed = {"name", "type", "surface"} | ({"component"} if ty == "contact_force" else set()) \
+            allowed = {"name", "type", "surface", "adjoint"} | ({"component"} if ty == "contact_force" else set()) \
                 | ({"order"} if ty == "pressure_norm" else set())
             Table(rd, where, data, allowed)
             surf = _surface_index(rd, t, where, ty, contacts)
             comp = t.component("component") if t.has("component") else None
             order = t.real("order", 8.0, positive=True)
-            out.append(Response(name, ty, surface=surf, component=comp, order=order))
+            out.append(Response(name, ty, surface=surf, component=comp, order=order, adjoint=adjoint))
             continue
-        Table(rd, where, data, {"name", "type", "set", "component"},
+        Table(rd, where, data, {"name", "type", "set", "component", "adjoint"},
               required=("name", "type", "set", "component"))
         node_set, comp = _node_set(t, mesh, "set"), t.component("component")
         if ty == "reaction":
@@ -302,7 +306,7 @@ def _responses(rd: Reader, items: list, mesh, contacts, fixed) -> tuple[Response
                 raise rd.error(where, f"reaction of set {node_set!r}, component {comp}: node(s) "
                                       f"{free[:5]} are not prescribed by any [[fixed]] in that "
                                       "component; reactions exist only on prescribed DOFs", key="set")
-        out.append(Response(name, ty, node_set=node_set, component=comp))
+        out.append(Response(name, ty, node_set=node_set, component=comp, adjoint=adjoint))
     return tuple(out)
 
 
