@@ -450,3 +450,13 @@ scale = 0.01
     (c,) = cfg.fit.curves
     np.testing.assert_allclose(c.times, [0.25, 0.5, 1.0], rtol=1e-15)
     assert cfg.fit.start == {"E": 80.0} and cfg.fit.bounds == {"E": (-np.inf, np.inf)}
+
+
+def test_tetrahedra_and_j2_bodies_are_read(tmp_path):
+    text = BOX.replace("nz = 1", "nz = 1\ntetrahedra = true").replace(
+        '[material]\ntype = "linear_elastic"\nE = "E"\nnu = "nu"',
+        '[material]\ntype = "j2"\nE = "E"\nnu = "nu"\nsigma_y = 2.0\nH = 1.0')
+    problem, cfg = pf.load(_write(tmp_path, text))
+    assert problem.mesh.n_cells == 6 * 4 and problem.mesh.cells.shape[1] == 4
+    assert problem.material == sg.J2Plasticity("E", "nu", 2.0, 1.0)
+    assert set(problem.mesh.face_sets) == {"x0", "x1", "y0", "y1", "z0", "z1"}
