@@ -86,6 +86,47 @@ def test_rings_count_nodes_at_equal_distance_once():
     assert checks.closing_rings(xq, np.array([0, 1, 1, 1, 1, 1], bool), pq, h) == 2
 
 
+def test_a_travelling_zone_counts_rows_across_its_travel():
+    """A die slid along x closes its nodes row by row: the nodes of one x (across
+    the travel) are one ring, whatever their distance from the centre."""
+    h = np.ones(7)
+    x = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [1, 2, 0], [2, 0, 0], [2, 1, 0], [2, 2, 0]])
+    p = np.array([3.0, 0, 0, 0, 0, 0, 0])
+    new = np.array([0, 1, 1, 1, 0, 0, 0], bool)
+    assert checks.closing_rings(x, new, p, h) == 3  # about the centre: three radii
+    along = np.array([1.0, 0.0, 0.0])
+    assert len(checks.ring_distances(x, new, p, h, direction=along)[1]) == 1
+    assert len(checks.ring_distances(x, ~np.eye(7, dtype=bool)[0], p, h, direction=along)[1]) == 2
+
+
+def _roller(steps):
+    """A rigid roller (a cylinder across a thin block) pressed, then slid along it
+    by 2 with friction and finite kinematics: the contact zone travels."""
+    press, slide = sg.Ramp(0.0, 0.2), sg.Ramp(0.2, 1.0)
+    mesh = sg.box(np.linspace(0, 4, 33), np.linspace(0, 0.25, 3), np.linspace(-0.5, 0, 5))
+    roller = sg.Cylinder(radius="R", centre=(1.0, 0.0, lambda p: p["R"]), axis=(0.0, 1.0, 0.0),
+                         motion=(((0.0, 0.0, lambda p: -p["d"]), press),
+                                 ((lambda p: p["s"], 0.0, 0.0), slide)))
+    pb = sg.Problem(mesh, sg.LinearElastic(), {"E": 100.0, "nu": 0.3, "R": 1.0, "d": 0.03, "s": 2.0,
+                                               "mu": 0.3, "eps": 800.0},
+                    fixed=[sg.Fixed("z0", k) for k in range(3)],
+                    contact=[sg.Contact(roller, "z1", sg.Coulomb("mu", "eps", "eps"), kinematics="finite")])
+    return _solve(pb, steps)
+
+
+@pytest.mark.timeout(300)
+def test_a_sliding_roller_warns_by_rows_and_its_advice_clears_it():
+    """The zone moves four rows per increment at 5 increments: 'grew by 3 rings'
+    (rows of 3 nodes across the block), and the advised count clears it (counted
+    about the centre, the rows' nodes were rings of their own and the advice,
+    followed, asked for ever more)."""
+    (message,) = _coarse_path(_roller(5))
+    rings, nodes = map(int, re.search(r"grew by (\d+) rings of nodes \((\d+) nodes\)", message).groups())
+    assert nodes == 3 * rings and rings > 1
+    steps = int(re.search(r"--steps (\d+)\)", message).group(1))
+    assert not _coarse_path(_roller(steps)), "following the advice must clear the warning"
+
+
 @pytest.mark.timeout(300)
 def test_symmetric_quarter_model_clears_with_more_increments():
     """The old node count warned on this mesh at 10, 20 and 40 increments (pairs of

@@ -154,7 +154,7 @@ def contact_centre(x: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def ring_distances(x: np.ndarray, new: np.ndarray, p: np.ndarray, h: np.ndarray,
-                   width: float = RING_WIDTH) -> tuple[np.ndarray, np.ndarray]:
+                   width: float = RING_WIDTH, direction=None) -> tuple[np.ndarray, np.ndarray]:
     """The rings of nodes that the nodes ``new`` (closed in this increment) make:
     the fewest bands ``width`` cell sizes ``h`` wide (``h`` of each band's nearest
     node) that hold their distances from the contact centre (:func:`contact_centre`
@@ -188,10 +188,17 @@ def ring_distances(x: np.ndarray, new: np.ndarray, p: np.ndarray, h: np.ndarray,
     nodes). A pressure-weighted centroid would do on a full model but lies off the
     centre on a half or quarter model, whose symmetry planes pass through the
     centre while its nodes cover one side; the largest pressure of a Hertz-like
-    zone sits on those planes."""
+    zone sits on those planes.
+
+    A zone that travels (a die slid along a block: ``direction``, the unit
+    vector of its centre's travel) closes its nodes in order of their place
+    along the travel, not of their distance from the centre: a row across the
+    travel (the nodes under a cylinder's line of contact) closes at once however
+    small the steps, and is one ring; ``r`` is then the coordinate along
+    ``direction``."""
     closed = p > 0
     c = contact_centre(x[closed], p[closed]) if closed.any() else x[new].mean(axis=0)
-    r = np.linalg.norm(x - c, axis=1)
+    r = np.linalg.norm(x - c, axis=1) if direction is None else (x - c) @ direction
     idx = np.nonzero(new)[0]
     starts, edge = [], -np.inf
     for k in idx[np.argsort(r[idx], kind="stable")]:
@@ -248,6 +255,7 @@ class IncrementChecks:
         self.coarse = {}  # surface -> [(increment, t0, t, new nodes, rings)] over the threshold
         self.sizes = {}  # surface -> the local cell size at each contact node (friction)
         self.reference = {}  # surface -> its nodes' reference positions (friction: the rings)
+        self.origin = {}  # surface -> where its contact zone's centre was first (reference)
         X = None
         for i, s in enumerate(model.surfaces):
             if s.patches is not None and not model.linear_contact[i]:
@@ -299,15 +307,28 @@ class IncrementChecks:
                              f"{int(s.nodes[flip[0]])}) passed through the obstacle in increment "
                              f"{n_inc} (t = {t0:.4g} -> {t:.4g}); the result is not physical: use "
                              "more load increments")
+                if i in self.sizes and closed0.any() and closed1.any():
+                    X = self.reference[i]
+                    self.origin.setdefault(i, contact_centre(X[closed0], before[i][2][closed0]))
                 if i in self.sizes and t0 >= COARSE_PATH_FROM - 1e-12 and closed0.any():
                     new = closed1 & ~closed0
                     if new.any():
-                        r, starts = ring_distances(self.reference[i], new, p1, self.sizes[i])
+                        r, starts = ring_distances(self.reference[i], new, p1, self.sizes[i],
+                                                   direction=self._travel(i, closed1, p1))
                         if len(starts) > MAX_NEW_CONTACT_RINGS:
                             spread = ring_spread(r, starts, closed0, closed1)
                             self.coarse.setdefault(i, []).append(
                                 (n_inc, t0, t, int(new.sum()), len(starts), spread))
         self.prev = now
+
+    def _travel(self, i, closed, p):
+        """The unit direction in which surface i's contact zone has travelled since
+        it formed (its centre moved by more than a median cell), or None (a zone
+        that grows about its centre)."""
+        X = self.reference[i]
+        d = contact_centre(X[closed], p[closed]) - self.origin[i]
+        n = float(np.linalg.norm(d))
+        return d / n if n > float(np.median(self.sizes[i])) else None
 
     def _lost_partners(self, w, now, n_inc) -> None:
         """A slave node of a pair that overlaps a master segment outside its
@@ -356,8 +377,9 @@ class IncrementChecks:
                  f"{rings} rings of nodes ({new} nodes) in increment {n_inc} (t = {t0:.4g} -> "
                  f"{t:.4g}){more}; with friction the history of the nodes that close within one "
                  f"increment is not resolved (more than {MAX_NEW_CONTACT_RINGS} ring per increment "
-                 "after t = 1/3; nodes at equal distance from the contact centre are one ring: they "
-                 "close together however small the increment), so stick "
+                 "after t = 1/3; nodes at equal distance from the contact centre, or in one row "
+                 "across the travel of a zone that slides, are one ring: they close together "
+                 "however small the increment), so stick "
                  f"and slip zones can be wrong: use more load increments, at least {steps} "
                  f"(steps={steps}, --steps {steps})")
         for i, s in enumerate(self.model.surfaces):
