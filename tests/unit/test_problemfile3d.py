@@ -310,6 +310,15 @@ BAD = [
     (_sub('motion = [0.0, 0.0, "-d"]', 'motion = [{ vector = [0.0, 0.0, "-d"], ramp = [0.5, 0.2] }]'),
      "[[contact]] #1 obstacle motion[0] ramp: Ramp(start, end) needs", 27),
     (_sub('"-d"', '"-dd"'), "[[contact]] #1 obstacle motion[2]: '-dd': unknown name 'dd'", 27),
+    (_sub('type = "sphere", radius = "R", centre = [0.5, 0.5, "R"]',
+          'type = "implicit", expression = "log(-1) + z"'),
+     "[[contact]] #1 obstacle the expression is nan at the point origin + (1, 1, 1)", 27),
+    (_sub('type = "sphere", radius = "R", centre = [0.5, 0.5, "R"]',
+          'type = "implicit", expression = "z + 9**9**9**9"'),  # a power of integers: no hang
+     "[[contact]] #1 obstacle 'z + 9**9**9**9' cannot be evaluated: OverflowError", 27),
+    (_sub('type = "sphere", radius = "R", centre = [0.5, 0.5, "R"]',
+          'type = "implicit", expression = "1/0 + z"'),
+     "[[contact]] #1 obstacle '1/0 + z' cannot be evaluated: ZeroDivisionError", 27),
     (_sub('type = "linear_elastic"', 'type = "j2"'), "[material] missing required key 'sigma_y'", 16),
     (_sub("[solve]", "[[pair]]\nslave = \"z1\"\nmaster = \"z1\"\n\n[solve]"),
      "[[pair]] #1 master: the slave and master surfaces are both 'z1'", 31),
@@ -414,6 +423,18 @@ def test_2d_implicit_circle_equals_the_circle(tmp_path):
     assert isinstance(problem.contact[0].obstacle, sg.Implicit)
     assert (sols[0].contact()["p_N"] > 0).sum() >= 3
     _same(sols[1], sols[0], ["R", "d"])
+
+
+def test_2d_implicit_with_friction_is_refused(tmp_path):
+    text = STRIP.replace('type = "circle", radius = "R", centre = [0.0, "R"]',
+                         'type = "implicit", expression = "hypot(x, y) - R", origin = [0.0, "R"]')
+    text = text.replace("eps = 400.0", 'eps = 400.0\nmethod = "coulomb"\nmu = 0.2')
+    f = _write(tmp_path, text)
+    with pytest.raises(sg.InputError) as err:
+        pf.load(f)
+    assert str(err.value) == (f"{f}: [[contact]] #1 method: a 2-D implicit obstacle takes frictionless "
+                              "laws only (\"al\", \"penalty\"): Coulomb friction in 2-D needs a circle "
+                              "or a line (line 30)")
 
 
 def test_paths_rotations_and_a_displacement_abscissa_are_read(tmp_path):

@@ -40,7 +40,10 @@ class Expression:
         return f"<expression {self.text!r}>"
 
     def evaluate(self, env: dict):
-        return _eval(self._tree, env)
+        try:
+            return _eval(self._tree, env)
+        except (ArithmeticError, ValueError) as e:  # 1/0, an overflowing power of numbers
+            raise InputError(f"{self.text!r} cannot be evaluated: {type(e).__name__}: {e}") from None
 
     def distance(self):
         """``f(y, p)``: the value at the point y (its coordinates x, y[, z]) for the
@@ -75,7 +78,15 @@ def _eval(node, env):
         v = _eval(node.operand, env)
         return -v if isinstance(node.op, ast.USub) else v
     if isinstance(node, ast.BinOp):
-        return _BIN[type(node.op)](_eval(node.left, env), _eval(node.right, env))
+        a, b = _eval(node.left, env), _eval(node.right, env)
+        if isinstance(node.op, ast.Pow):
+            # no power of two Python integers (9**9**9 would run for ever): a number
+            # base becomes a float, and only a small integer exponent stays an integer
+            if isinstance(a, int):
+                a = float(a)
+            if isinstance(b, int) and abs(b) > 64:
+                b = float(b)
+        return _BIN[type(node.op)](a, b)
     _, fn = _FUNCS[node.func.id]
     return fn(*(_eval(a, env) for a in node.args))
 

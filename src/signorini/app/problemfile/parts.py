@@ -284,8 +284,14 @@ def obstacle(rd: Reader, where: str, data):
         ob = Implicit(dist, {n: n for n in sorted(used)}, origin=origin, motion=mo, **extra)
     try:
         ob.check(rd.params)
+        if kind_ == "implicit":  # a value at the check's point (NaN: e.g. the log of a negative)
+            geo = ob.geometry(rd.params, 0.0)
+            g = float(ob.distance(geo["c"] + 1.0, geo["p"]))
+            if not np.isfinite(g):
+                raise InputError(f"the expression is {g} at the point origin + (1, 1, 1)[:dim]; it "
+                                 "must be finite where the body may be")
     except InputError as e:
-        raise rd.error(where, f"{e}") from None
+        raise rd.error(where, f"{e}", key="expression" if kind_ == "implicit" else None) from None
     return ob
 
 

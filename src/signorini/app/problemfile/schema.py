@@ -14,6 +14,7 @@ import numpy as np
 from ... import responses as public
 from ...algorithms.newton import NewtonOptions
 from ...contact import AugmentedLagrangian, Contact, Coulomb, Penalty, pair
+from ...contact.obstacles3d import Implicit
 from ...errors import InputError, UnknownParameterError
 from ...fem.loads import Fixed, Pressure, Traction
 from ...model.problem import Problem
@@ -177,6 +178,10 @@ def _contact(rd: Reader, k: int, data, mesh, E: float):
     name = _boundary(t, mesh)
     ob = parts.obstacle(rd, where, data["obstacle"])
     meth, kin = _law(rd, t, where, _shortest(mesh, name, rd.dim), E)
+    if rd.dim == 2 and isinstance(meth, Coulomb) and isinstance(ob, Implicit):
+        raise t.err("method", f"a 2-D implicit obstacle takes frictionless laws "
+                              "only (\"al\", \"penalty\"): Coulomb friction in 2-D needs a circle or "
+                              "a line")
     return Contact(ob, name, meth, kinematics=kin)
 
 
