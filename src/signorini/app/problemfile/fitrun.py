@@ -128,6 +128,10 @@ def fit(path, out, *, solver="auto", progress=None, resume: bool = False,
     except KeyboardInterrupt:
         _write_history(out, names, rows, "interrupted")
         raise
+    except InputError as e:
+        if type(e) is InputError:  # found when the model is built: say which file
+            raise InputError(f"{cfg.path}: {e}") from None
+        raise
     _write_history(out, names, rows, "converged" if res.success else "stopped")
     said = list(dict.fromkeys([*cfg.warnings, *res.warnings, *(str(w.message) for w in caught
                                                                 if issubclass(w.category, SignoriniWarning))]))

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import SolverError
+from ...errors import InputError, SolverError
 from ...model.problem import Problem
 from ..._jax import jnp
 from ...algorithms.stepping import solve
@@ -198,6 +198,10 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
         raise
     except SolverError as e:  # ConvergenceError keeps the converged increments in .partial
         error, sol = e, getattr(e, "partial", None)
+    except InputError as e:
+        if type(e) is InputError:  # found when the model is built (e.g. surfaces that share nodes)
+            raise InputError(f"{cfg.path}: {e}") from None
+        raise
     summary["time_solve_s"] = time.perf_counter() - t0
     timing.mark("output")
     summary["status"] = "failed" if error is not None else "converged"
