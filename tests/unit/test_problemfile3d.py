@@ -3,7 +3,6 @@ docs/problem-files.md runs; two-body files (2-D and 3-D) give the API script's
 solution to round-off; implicit surfaces are parsed safely; bad files get an
 error naming the key and its line."""
 
-import json
 import re
 from pathlib import Path
 
@@ -208,7 +207,7 @@ type = "traction"
 faces = "top"
 value = [0.0, 0.0, -1.0]
 """
-    problem, cfg = pf.load(_write(tmp_path, text))
+    problem, _ = pf.load(_write(tmp_path, text))
     sol = sg.solve(problem, wrt=["E2"])
     mesh = sg.read_mesh(tmp_path / "two.msh")
     pb = sg.Problem(mesh, sg.Bodies({"lower": sg.LinearElastic("E1", "nu"),
@@ -477,7 +476,7 @@ def test_tetrahedra_and_j2_bodies_are_read(tmp_path):
     text = BOX.replace("nz = 1", "nz = 1\ntetrahedra = true").replace(
         '[material]\ntype = "linear_elastic"\nE = "E"\nnu = "nu"',
         '[material]\ntype = "j2"\nE = "E"\nnu = "nu"\nsigma_y = 2.0\nH = 1.0')
-    problem, cfg = pf.load(_write(tmp_path, text))
+    problem, _ = pf.load(_write(tmp_path, text))
     assert problem.mesh.n_cells == 6 * 4 and problem.mesh.cells.shape[1] == 4
     assert problem.material == sg.J2Plasticity("E", "nu", 2.0, 1.0)
     assert set(problem.mesh.face_sets) == {"x0", "x1", "y0", "y1", "z0", "z1"}

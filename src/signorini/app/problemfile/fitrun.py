@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...design.fit import Curve, fit as fit_curves
+from ...design.fit import Curve
+from ...design.fit import fit as fit_curves
 from ...errors import InputError, SignoriniWarning
 from ...post import files as io
 from ...post.plots import save, subplots

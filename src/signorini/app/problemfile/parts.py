@@ -13,7 +13,8 @@ import numpy as np
 from ...contact.obstacles import Circle, Line
 from ...contact.obstacles3d import Cylinder, Implicit, Plane, Sphere
 from ...errors import InputError, SignoriniWarning
-from ...fem.loads import Ramp, Table as PathTable
+from ...fem.loads import Ramp
+from ...fem.loads import Table as PathTable
 from ...fem.mesh import merge, rectangle
 from ...fem.mesh3d import box, tetrahedra
 from ...fem.meshfile import read_mesh

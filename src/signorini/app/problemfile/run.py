@@ -10,18 +10,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import InputError, SolverError
-from ...model.problem import Problem
+from ... import timing
 from ..._jax import jnp
 from ...algorithms.stepping import solve
 from ...design.gradient import gradient
+from ...errors import InputError, SolverError
 from ...linsolve import check_size
+from ...model.problem import Problem
 from ...post import files as io
-from ... import timing
 from .. import validity
 from ..runner import keep_for_interrupt, prepare_output, use_solver, write_summary_json
-
-
 from .schema import Response, RunConfig, load
 
 __all__ = ["run"]
@@ -96,12 +94,12 @@ def _contact_csv(sol, k: int, path: Path):
         cols["status"] = c["status"]
         cols["slip"] = c["slip"]
     flat = {}
-    for k, v in cols.items():  # 3-D friction: tangential vectors, one column per component
+    for key, v in cols.items():  # 3-D friction: tangential vectors, one column per component
         v = np.asarray(v)
         if v.ndim == 2:
-            flat.update({f"{k}_{i}": v[:, i] for i in range(v.shape[1])})
+            flat.update({f"{key}_{i}": v[:, i] for i in range(v.shape[1])})
         else:
-            flat[k] = v
+            flat[key] = v
     io.write_csv(path, flat)
     return c
 

@@ -179,7 +179,7 @@ def _contact(rd: Reader, k: int, data, mesh, E: float):
     ob = parts.obstacle(rd, where, data["obstacle"])
     meth, kin = _law(rd, t, where, _shortest(mesh, name, rd.dim), E)
     if rd.dim == 2 and isinstance(meth, Coulomb) and isinstance(ob, Implicit):
-        raise t.err("method", f"a 2-D implicit obstacle takes frictionless laws "
+        raise t.err("method", "a 2-D implicit obstacle takes frictionless laws "
                               "only (\"al\", \"penalty\"): Coulomb friction in 2-D needs a circle or "
                               "a line")
     return Contact(ob, name, meth, kinematics=kin)
@@ -306,7 +306,7 @@ def _responses(rd: Reader, items: list, mesh, contacts, fixed) -> tuple[Response
             for f in fixed:
                 if f.component == comp:
                     fixed_nodes.update(int(n) for n in mesh.node_set(f.node_set))
-            free = sorted(set(int(n) for n in mesh.node_set(node_set)) - fixed_nodes)
+            free = sorted({int(n) for n in mesh.node_set(node_set)} - fixed_nodes)
             if free:
                 raise rd.error(where, f"reaction of set {node_set!r}, component {comp}: node(s) "
                                       f"{free[:5]} are not prescribed by any [[fixed]] in that "
