@@ -96,6 +96,9 @@ def test_a_travelling_zone_counts_rows_across_its_travel():
     assert checks.closing_rings(x, new, p, h) == 3  # about the centre: three radii
     along = np.array([1.0, 0.0, 0.0])
     assert len(checks.ring_distances(x, new, p, h, direction=along)[1]) == 1
+    # the direction is estimated from the zone's path: a tilt of 1.4 degrees (ironing3d's)
+    tilted = np.array([1.0, -0.024, 0.0]) / np.hypot(1.0, 0.024)
+    assert len(checks.ring_distances(x, new, p, h, direction=tilted)[1]) == 1
     assert len(checks.ring_distances(x, ~np.eye(7, dtype=bool)[0], p, h, direction=along)[1]) == 2
 
 
