@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from signorini.design import evaluation
 from signorini.design import fit as fitmod
 from signorini.design.fit import Misfit
 
@@ -128,6 +129,50 @@ def test_the_gradient_the_fit_uses_is_the_central_difference_of_the_misfit(measu
             assert np.abs(fd_r - J[:, i]).max() < 1e-6 * np.abs(J[:, i]).max()
 
 
+def test_the_adjoint_gradient_of_the_misfit_is_ddms_and_the_central_difference(measured):
+    """gradient="adjoint": F as responses.misfit summed over the increments, with one
+    backward pass (sg.Objective, sg.Adjoint()) for both parameters. At the start and
+    at a point on the other side of the truth its F is r^T r (1e-13), its gradient
+    2 J^T r of DDM to 1e-10 and the central differences of its own F (step 1e-4 of
+    each value) to 1e-6, relative."""
+    m = Misfit(measured[0], ["E", "mu"], curves(measured), options=TIGHT)
+    obj = m.objective()
+    assert obj.gradient_mode == "adjoint" and obj.increments == "all"
+    for x in (np.array([75.0, 0.38]), np.array([120.0, 0.22])):
+        F, g = obj.value_and_grad(x)
+        print(x, F, m(x), g, m.gradient(x), np.abs(g / m.gradient(x) - 1))
+        assert F == pytest.approx(m(x), rel=1e-13)
+        assert np.abs(g / m.gradient(x) - 1).max() < 1e-10
+        for i in range(2):
+            h = 1e-4 * x[i]
+            e = np.zeros(2)
+            e[i] = h
+            fd = (obj(x + e) - obj(x - e)) / (2 * h)
+            print(i, g[i], fd, abs(fd / g[i] - 1))
+            assert abs(fd / g[i] - 1) < 1e-6
+
+
+def test_lbfgsb_with_the_adjoint_gradient_recovers_E_and_mu(measured):
+    """The noise-free fit of the first test with L-BFGS-B on the adjoint gradient:
+    E and mu to 1e-6 relative; the standard errors come from one more solve, with
+    DDM sensitivities, at the optimum (the last evaluation, of the adjoint's best
+    point)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sg.SignoriniWarning)
+        res = sg.fit(measured[0], ["E", "mu"], curves(measured), start=START, bounds=BOUNDS,
+                     method="L-BFGS-B", gradient="adjoint", options=TIGHT, max_solves=40)
+    print(res)
+    assert res.success and res.gradient == "adjoint" and "adjoint gradient" in res.table()
+    assert _rel(res.values).max() < 1e-6
+    *adjoint, ddm = res.evaluations
+    assert res.n_solves == len(res.evaluations) <= 41 and len(adjoint) >= 5
+    assert all(e.kind == "value+gradient" for e in adjoint)
+    assert np.array_equal(ddm.x, res.x) and ddm.F == pytest.approx(res.misfit, rel=1e-12)
+    assert min(e.F for e in adjoint) == pytest.approx(res.misfit, rel=1e-9, abs=1e-28)
+    for i, n in enumerate(["E", "mu"]):
+        assert res.stderr[n] < 1e-6 * res.x[i]
+
+
 def test_with_one_percent_noise_the_truth_lies_within_two_standard_errors(measured):
     """Gaussian noise of 1 % of each curve's largest |value| on every datum, ten
     fixed seeds, weights 1 / (that standard deviation)^2 (so the residuals' scale
@@ -173,11 +218,13 @@ def test_parameters_the_curves_cannot_separate_are_warned_of(measured):
     assert np.isnan(res.stderr["H"]) and res.condition == np.inf
 
 
-@pytest.mark.parametrize("method", ["least_squares", "L-BFGS-B"])
-def test_a_failed_solve_during_the_fit_is_survived(measured, monkeypatch, method):
+@pytest.mark.parametrize("method, gradient", [("least_squares", "ddm"), ("L-BFGS-B", "ddm"),
+                                              ("L-BFGS-B", "adjoint")])
+def test_a_failed_solve_during_the_fit_is_survived(measured, monkeypatch, method, gradient):
     """The solve at the first trial point fails (a ConvergenceError put there):
-    least squares shrinks its step, L-BFGS-B backs off from the penalty; the fit
-    goes on to the truth, with the failure recorded."""
+    least squares shrinks its step, L-BFGS-B backs off from the penalty (the
+    adjoint's solves are sg.Objective's); the fit goes on to the truth, with the
+    failure recorded."""
     pb = measured[0]
     real, n = fitmod.solve, []
 
@@ -188,8 +235,9 @@ def test_a_failed_solve_during_the_fit_is_survived(measured, monkeypatch, method
         return real(*a, **k)
 
     monkeypatch.setattr(fitmod, "solve", flaky)
+    monkeypatch.setattr(evaluation, "solve", flaky)
     res = sg.fit(pb, ["E", "mu"], curves(measured), start=START, bounds=BOUNDS, method=method,
-                 options=TIGHT, max_solves=40)
+                 gradient=gradient, options=TIGHT, max_solves=40)
     assert res.n_failed == 1 and res.evaluations[1].status == "failed"
     assert res.success and _rel(res.values).max() < 1e-6
 
@@ -240,6 +288,11 @@ BAD = [
     ("time before the first increment", {"curves": [(FZ, [0.1, 1.0], [1.0, 2.0])], "steps": 4},
      "before the first increment"),
     ("unknown method", {"method": "newton"}, "method must be one of"),
+    ("unknown gradient", {"method": "L-BFGS-B", "gradient": "fd"}, "gradient must be one of"),
+    ("adjoint with least squares", {"gradient": "adjoint"}, "gradient='adjoint' is for method='L-BFGS-B'"),
+    ("adjoint with a time between increments",
+     {"curves": [(FZ, [0.375, 1.0], [1.0, 2.0])], "steps": 4, "method": "L-BFGS-B", "gradient": "adjoint"},
+     r"the adjoint gradient needs every measured time on an increment \(k / 4\); 0.375"),
     ("no budget", {"max_solves": 0}, "max_solves must be a positive integer"),
 ]
 
@@ -254,16 +307,31 @@ def test_bad_inputs_are_named_before_any_solve(measured, monkeypatch, case, chan
         sg.fit(pb, kw.pop("wrt"), kw.pop("curves"), **kw)
 
 
-def test_a_start_the_problem_rejects_is_named(measured):
+@pytest.mark.parametrize("method, gradient", [("least_squares", "ddm"), ("L-BFGS-B", "adjoint")])
+def test_a_start_the_problem_rejects_is_named(measured, method, gradient):
     pb, t, Fz, _ = measured
     with pytest.raises(sg.InputError, match=r"the fit cannot start: the start \{'E': -50.0"):
-        sg.fit(pb, ["E", "mu"], [(FZ, t, Fz)], start={"E": -50.0})
+        sg.fit(pb, ["E", "mu"], [(FZ, t, Fz)], start={"E": -50.0}, method=method, gradient=gradient)
+
+
+def test_a_start_whose_solve_fails_is_named(measured, monkeypatch):
+    """With the adjoint gradient too, a failed solve at the start ends the fit with a
+    ConvergenceError that says so."""
+    pb, t, Fz, _ = measured
+
+    def fails(*a, **k):
+        raise sg.ConvergenceError("Newton failed (put there by the test)")
+
+    monkeypatch.setattr(evaluation, "solve", fails)
+    with pytest.raises(sg.ConvergenceError, match=r"the fit cannot start: the solve at the start "
+                       r"\{'E': 100.0, 'mu': 0.3\} failed: Newton failed \(put there"):
+        sg.fit(pb, ["E", "mu"], [(FZ, t, Fz)], method="L-BFGS-B", gradient="adjoint")
 
 
 def test_the_documentation_example_runs_and_prints_what_it_shows():
     """docs/fitting.md: its python block runs, and prints its text block."""
     text = (Path(__file__).resolve().parents[2] / "docs" / "fitting.md").read_text()
-    blocks = re.findall(r"^```(\w*)\n(.*?)^```[ \t]*$", text, re.S | re.M)
+    blocks = re.findall(r"^```(\w*)\n(.*?)^```[ \t]*$", text, re.DOTALL | re.MULTILINE)
     code = [b for lang, b in blocks if lang == "python"]
     shown = [b for lang, b in blocks if lang == "text"]
     assert len(code) == len(shown) == 1

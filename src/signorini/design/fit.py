@@ -42,15 +42,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._jax import jnp
 from ..algorithms.newton import NewtonOptions
 from ..algorithms.stepping import solve
 from ..errors import ConvergenceError, InputError
 from ..model import checks
 from ..params import check_names
-from ..responses import Response
+from ..responses import Response, misfit
+from ..sensitivity.methods import Adjoint
 from .evaluation import ObjectiveEvaluation
-from .fit_result import FitResult, statistics
+from .fit_result import TIME_TOL, Curve, FitResult, _curves, _numbers, statistics
 from .history import Evaluation
+from .optimize import Objective
 
 log = logging.getLogger("signorini")
 
@@ -58,97 +61,12 @@ __all__ = ["METHODS", "Curve", "FitResult", "Misfit", "fit"]
 
 #: optimisers of :func:`fit`
 METHODS = ("least_squares", "L-BFGS-B")
+#: how L-BFGS-B's gradient of the misfit is computed
+GRADIENTS = ("ddm", "adjoint")
 #: the largest number of increments derived from the measured times
 MAX_STEPS = 1000
-#: a measured time within this of an increment's load factor is that increment
-TIME_TOL = 1e-9
 #: solves kept (value and Jacobian at the same point share one)
 KEPT_POINTS = 4
-
-
-def _numbers(x, what: str) -> np.ndarray:
-    """x as a 1-D float array of finite numbers, else an InputError naming ``what``."""
-    try:
-        a = np.asarray(x)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"{what} must be a list of numbers: {e}") from None
-    if a.dtype.kind not in "iuf":
-        bad = next((v for v in a.ravel() if not isinstance(v, (int, float, np.number))
-                    or isinstance(v, bool)), a.ravel()[0] if a.size else None)
-        bad = bad.item() if isinstance(bad, np.generic) else bad
-        raise InputError(f"{what} must be numbers, got {bad!r} ({a.dtype} values)")
-    if a.ndim > 1:
-        raise InputError(f"{what} must be a flat list of numbers, got shape {a.shape}")
-    a = a.astype(float).ravel()
-    if not np.all(np.isfinite(a)):
-        raise InputError(f"{what} must be finite numbers, got {float(a[~np.isfinite(a)][0])}")
-    return a
-
-
-@dataclass(frozen=True, eq=False)
-class Curve:
-    """A measured curve: a response at load factors (pseudo-times) with its values.
-
-    Attributes:
-        response: the :class:`~signorini.responses.Response` measured.
-        times: (k,) load factors, increasing, in (0, 1].
-        values: (k,) the measured values.
-        weights: (k,) weights w >= 0 of the squared differences (default 1;
-            1 / variance of the measurement for statistical standard errors,
-            or any relative weights: the fit estimates the common scale).
-    """
-
-    response: Response
-    times: np.ndarray
-    values: np.ndarray
-    weights: np.ndarray | None = None
-
-    def __post_init__(self):
-        if not isinstance(self.response, Response):
-            raise InputError("a curve's response must be a signorini.responses Response (e.g. "
-                             f"sg.responses.contact_force(component=2)), got {self.response!r}")
-        name = f"curve {self.response.name}"
-        t = _numbers(self.times, f"{name}: times")
-        v = _numbers(self.values, f"{name}: values")
-        w = np.ones_like(t) if self.weights is None else _numbers(self.weights, f"{name}: weights")
-        if not (t.size == v.size == w.size) or t.size == 0:
-            raise InputError(f"{name}: times, values (and weights) need one entry per measured "
-                             f"point, got {t.size}, {v.size}, {w.size}")
-        if np.any(np.diff(t) <= 0):
-            k = int(np.argmax(np.diff(t) <= 0))
-            raise InputError(f"{name}: the times must increase; time {float(t[k + 1])!r} (entry {k + 1}) "
-                             f"follows {float(t[k])!r}")
-        if t[0] <= 0 or t[-1] > 1 + TIME_TOL:
-            raise InputError(f"{name}: the times are load factors of the path, in (0, 1]; got "
-                             f"{float(t[0])!r} .. {float(t[-1])!r}")
-        if np.any(w < 0):
-            raise InputError(f"{name}: weights must be >= 0")
-        for k, a in (("times", t), ("values", v), ("weights", w)):
-            object.__setattr__(self, k, a)
-
-    @property
-    def name(self) -> str:
-        return self.response.name
-
-    @classmethod
-    def of(cls, spec) -> Curve:
-        """A curve from a :class:`Curve` or a tuple (response, times, values[, weights])."""
-        if isinstance(spec, Curve):
-            return spec
-        if isinstance(spec, (tuple, list)) and len(spec) in (3, 4):
-            return cls(*spec)
-        raise InputError("a curve is a signorini.Curve or a tuple (response, times, values[, weights]), "
-                         f"got {type(spec).__name__}")
-
-
-def _curves(curves) -> list[Curve]:
-    if isinstance(curves, Curve) or (isinstance(curves, tuple) and curves
-                                     and isinstance(curves[0], Response)):
-        curves = [curves]
-    out = [Curve.of(c) for c in curves]
-    if not out:
-        raise InputError("fit needs at least one measured curve")
-    return out
 
 
 def _derived_steps(times: np.ndarray) -> int:
@@ -239,6 +157,7 @@ class Misfit(ObjectiveEvaluation):
         self._seen_logs: set = set()
         self._kept: OrderedDict[bytes, Point] = OrderedDict()
         self.best: Point | None = None
+        self._objective = None
 
     # ------------------------------------------------------------ public API
     def evaluate(self, x) -> Point:
@@ -294,6 +213,39 @@ class Misfit(ObjectiveEvaluation):
         if not pt.ok:
             raise pt.error
         return 2.0 * pt.J.T @ pt.r
+
+    def response(self) -> Response:
+        """F as one response summed over the increments: per curve,
+        :func:`signorini.responses.misfit` at the increments at its measured times
+        (zero at the others, cut increments included). Only for times on the
+        increments (an interpolated datum is not a sum over increments)."""
+        T = np.arange(1, self.steps + 1) / self.steps
+        for c in self.curves:
+            off = [float(t) for t in c.times if np.abs(T - t).min() > TIME_TOL]
+            if off:
+                raise InputError(f"curve {c.name}: the adjoint gradient needs every measured time on "
+                                 f"an increment (k / {self.steps}); {off[0]!r} is between two: leave "
+                                 "steps=None or take gradient='ddm' (which interpolates)")
+        parts = [(misfit(c.response, c.times, c.values, c.weights), c.times) for c in self.curves]
+
+        def build(model):
+            fns = [(m(model), tc) for m, tc in parts]
+
+            def fn(w, p, t, s):
+                return sum(jnp.where(jnp.any(jnp.abs(t - tc) <= TIME_TOL), f(w, p, t, s), 0.0)
+                           for f, tc in fns)
+            return fn
+        return Response("fit[" + ",".join(m.name for m, _ in parts) + "]", build)
+
+    def objective(self):
+        """The :class:`~signorini.Objective` of F with the adjoint gradient (one solve
+        and one backward pass per point, whatever the number of parameters): F =
+        :meth:`response` summed over all increments of the path."""
+        if self._objective is None:
+            self._objective = Objective(self.problem, self.names, self.response(), method=Adjoint(),
+                                        steps=self.steps, increments="all", options=self.options,
+                                        solver=self.solver, label=self.label)
+        return self._objective
 
     @property
     def n_solves(self) -> int:
@@ -402,7 +354,8 @@ class _Stop(Exception):
 
 
 def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: int | None = None,
-        method: str = "least_squares", tol: float = 1e-10, max_solves: int = 100,
+        method: str = "least_squares", gradient: str = "ddm", tol: float = 1e-10,
+        max_solves: int = 100,
         options: NewtonOptions | None = None, solver="auto", optimizer_options: dict | None = None,
         callback: Callable | None = None, label: str = "fit") -> FitResult:
     """Identify parameters of a problem from measured curves, with standard errors.
@@ -420,6 +373,13 @@ def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: 
         method: ``"least_squares"`` (:func:`scipy.optimize.least_squares`, trust-region
             reflective with the exact Jacobian) or ``"L-BFGS-B"`` (the misfit F and its
             gradient 2 J^T r, F divided by its start value and x by the start's scale).
+        gradient: L-BFGS-B's gradient of F: ``"ddm"`` (2 J^T r, one solve with
+            sensitivities of every parameter) or ``"adjoint"`` (F as
+            :func:`signorini.responses.misfit` summed over the increments,
+            :class:`~signorini.Objective` with :class:`~signorini.Adjoint`: one solve
+            and one backward pass, whatever the number of parameters; the measured
+            times must be on increments). The standard errors then come from one
+            more solve, with DDM sensitivities, at the optimum.
         tol: the optimisers' tolerances (least_squares' ftol, xtol, gtol; L-BFGS-B's
             ftol and gtol).
         max_solves: the budget of solves (a failed one included).
@@ -448,6 +408,11 @@ def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: 
     t_start = time.perf_counter()
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if gradient not in GRADIENTS:
+        raise InputError(f"gradient must be one of {GRADIENTS}, got {gradient!r}")
+    if gradient == "adjoint" and method != "L-BFGS-B":
+        raise InputError("gradient='adjoint' is for method='L-BFGS-B' (least squares needs the "
+                         "residuals' Jacobian, which DDM gives)")
     if not (isinstance(max_solves, (int, np.integer)) and max_solves >= 1):
         raise InputError(f"max_solves must be a positive integer, got {max_solves!r}")
     if not (isinstance(tol, (int, float)) and 0 < tol < 1):
@@ -458,22 +423,45 @@ def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: 
     lo, hi = _bounds(bounds, names, x0)
     scale = np.where(x0 != 0, np.abs(x0), 1.0)
 
-    first = mis.evaluate(x0)
-    if not first.ok:
+    obj = mis.objective() if gradient == "adjoint" else None  # its times checked before a solve
+
+    def solves() -> int:
+        return mis.n_solves + (obj.n_solves if obj is not None else 0)
+
+    def seen(x) -> bool:
+        return mis.point(x).tobytes() in (obj._cache if obj is not None else mis._kept)
+
+    def at(x):
+        """(F, dF/dx) at x (a failed solve: the penalty of Objective)."""
+        if obj is not None:
+            ev = obj.evaluate(x)
+            return ev.F, ev.grad
+        pt = mis.evaluate(x)
+        return (pt.F, 2.0 * pt.J.T @ pt.r) if pt.ok else mis._penalty(mis.point(x), pt.error)
+
+    if obj is None:
+        first = mis.evaluate(x0)
+        status, reason, err, partial = first.status, first.reason, first.error, first.solution
+    else:
+        try:
+            status, err, partial = obj.evaluate(x0).status, None, None
+        except (ConvergenceError, InputError) as e:  # the start has no good point to fall back on
+            status, reason, err = ("failed" if isinstance(e, ConvergenceError) else "invalid"), str(e), e
+            partial = getattr(e, "partial", None)
+    if status != "ok":
         where = dict(zip(names, x0.tolist()))
-        if first.status == "failed":
+        if status == "failed":
             raise ConvergenceError(f"the fit cannot start: the solve at the start {where} failed: "
-                                   f"{first.reason}", partial=first.solution) from first.error
-        raise InputError(f"the fit cannot start: the start {where} is invalid: {first.reason}") \
-            from first.error
+                                   f"{reason}", partial=partial) from err
+        raise InputError(f"the fit cannot start: the start {where} is invalid: {reason}") from err
     history: list[dict] = []
 
     def iteration(x):
-        pt = mis.evaluate(x)
-        g = 2.0 * pt.J.T @ pt.r
+        x = mis.point(x)
+        F, g = at(x)
         free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))  # projected on the bounds
-        row = {"iteration": len(history), "F": pt.F, "grad_norm": float(np.linalg.norm(g[free])),
-               "x": pt.x.tolist(), "solves": mis.n_solves, "time": time.perf_counter() - t_start}
+        row = {"iteration": len(history), "F": F, "grad_norm": float(np.linalg.norm(g[free])),
+               "x": x.tolist(), "solves": solves(), "time": time.perf_counter() - t_start}
         history.append(row)
         log.info("%s iteration %d: F = %.10g, |grad| = %.4g, %d solves", label, row["iteration"],
                  row["F"], row["grad_norm"], row["solves"])
@@ -481,35 +469,32 @@ def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: 
             callback(row)
 
     def budget():
-        if mis.n_solves >= max_solves:
+        if solves() >= max_solves:
             raise _Stop
 
     success, message = False, ""
     try:
         if method == "least_squares":
             def residuals(x):
-                if mis.point(x).tobytes() not in mis._kept:
+                if not seen(x):
                     budget()
                 return mis.residuals(x)
 
             def jacobian(x, *_):
-                iteration(mis.point(x))  # least squares asks for J at each accepted point
+                iteration(x)  # least squares asks for J at each accepted point
                 return mis.jacobian(x)
 
             opts = {"ftol": tol, "xtol": tol, "gtol": tol, "max_nfev": max_solves, "x_scale": scale}
             opts.update(optimizer_options or {})
             res = so.least_squares(residuals, x0, jac=jacobian, bounds=(lo, hi), method="trf", **opts)
         else:
-            F0 = first.F if first.F > 0 else 1.0
+            F0 = at(x0)[0] or 1.0
 
             def value_and_gradient(z):
                 x = z * scale
-                if mis.point(x).tobytes() not in mis._kept:
+                if not seen(x):
                     budget()
-                pt = mis.evaluate(x)
-                if pt.ok:
-                    return pt.F / F0, 2.0 * (pt.J.T @ pt.r) * scale / F0
-                F, g = mis._penalty(mis.point(x), pt.error)
+                F, g = at(x)
                 return F / F0, g * scale / F0
 
             iteration(x0)
@@ -517,11 +502,15 @@ def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: 
             opts.update(optimizer_options or {})
             res = so.minimize(value_and_gradient, x0 / scale, jac=True, method="L-BFGS-B",
                               bounds=list(zip(lo / scale, hi / scale)), options=opts,
-                              callback=lambda zk, *a: iteration(mis.point(zk * scale)))
+                              callback=lambda zk, *a: iteration(zk * scale))
         success, message = bool(res.success), str(res.message)
     except _Stop:
         message = f"the budget of {max_solves} solves is spent (max_solves)"
-    best = mis.best
+    best = mis.best if obj is None else mis.evaluate(obj.best.x)  # adjoint: one DDM solve for J
+    if not best.ok:
+        raise ConvergenceError(f"fit: the solve with sensitivities at the optimum "
+                               f"{dict(zip(names, best.x.tolist()))} failed: {best.reason}",
+                               partial=best.solution) from best.error
     if history[-1]["x"] != best.x.tolist():
         iteration(best.x)
     cov, corr, condition, sigma, messages = statistics(best.r, best.J, mis.n_data, names)
@@ -539,9 +528,12 @@ def fit(problem, wrt: Sequence[str], curves, *, start=None, bounds=None, steps: 
         covariance=cov, correlation=corr, sigma=sigma, misfit=best.F, residuals=best.r.copy(),
         jacobian=best.J.copy(), n_data=mis.n_data, condition=condition, fitted=best.fitted,
         curves=mis.curves, bounds=list(zip(lo.tolist(), hi.tolist())), history=history,
-        n_solves=mis.n_solves, n_failed=mis.n_failed, success=success, message=message,
-        method=method, time=time.perf_counter() - t_start, warnings=list(mis.warnings),
-        solution=best.solution, evaluations=mis.records, label=label)
+        n_solves=solves(), n_failed=mis.n_failed + (obj.n_failed if obj is not None else 0),
+        success=success, message=message, method=method, gradient=gradient,
+        time=time.perf_counter() - t_start,
+        warnings=list(dict.fromkeys(mis.warnings + (obj.warnings if obj is not None else []))),
+        solution=best.solution, evaluations=(obj.records if obj is not None else []) + mis.records,
+        label=label)
     for m in messages:
         checks.warn(result, m)
     return result

@@ -1,4 +1,5 @@
-"""The result of :func:`signorini.design.fit.fit` and its statistics: Gauss-Newton
+"""The measured curves (:class:`Curve`) and the result of :func:`signorini.design.fit.fit`
+with its statistics: Gauss-Newton
 standard errors and correlations of the fitted parameters (docs/fitting.md),
 
     s^2 = r^T r / (m - n),    C = s^2 (J^T J)^-1,    SE_i = sqrt(C_ii),
@@ -14,7 +15,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["FitResult", "statistics"]
+from ..errors import InputError
+from ..responses import Response
+
+__all__ = ["Curve", "FitResult", "statistics"]
+
+#: a measured time within this of an increment's load factor is that increment
+TIME_TOL = 1e-9
 
 #: above this |correlation| of two parameters the fit warns
 MAX_CORRELATION = 0.99
@@ -22,6 +29,92 @@ MAX_CORRELATION = 0.99
 #: above SINGULAR it takes J^T J as singular (no covariance)
 MAX_CONDITION = 1e10
 SINGULAR = 1e14
+
+
+# ---------------------------------------------------------------------- curves
+def _numbers(x, what: str) -> np.ndarray:
+    """x as a 1-D float array of finite numbers, else an InputError naming ``what``."""
+    try:
+        a = np.asarray(x)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{what} must be a list of numbers: {e}") from None
+    if a.dtype.kind not in "iuf":
+        bad = next((v for v in a.ravel() if not isinstance(v, (int, float, np.number))
+                    or isinstance(v, bool)), a.ravel()[0] if a.size else None)
+        bad = bad.item() if isinstance(bad, np.generic) else bad
+        raise InputError(f"{what} must be numbers, got {bad!r} ({a.dtype} values)")
+    if a.ndim > 1:
+        raise InputError(f"{what} must be a flat list of numbers, got shape {a.shape}")
+    a = a.astype(float).ravel()
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{what} must be finite numbers, got {float(a[~np.isfinite(a)][0])}")
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Curve:
+    """A measured curve: a response at load factors (pseudo-times) with its values.
+
+    Attributes:
+        response: the :class:`~signorini.responses.Response` measured.
+        times: (k,) load factors, increasing, in (0, 1].
+        values: (k,) the measured values.
+        weights: (k,) weights w >= 0 of the squared differences (default 1;
+            1 / variance of the measurement for statistical standard errors,
+            or any relative weights: the fit estimates the common scale).
+    """
+
+    response: Response
+    times: np.ndarray
+    values: np.ndarray
+    weights: np.ndarray | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.response, Response):
+            raise InputError("a curve's response must be a signorini.responses Response (e.g. "
+                             f"sg.responses.contact_force(component=2)), got {self.response!r}")
+        name = f"curve {self.response.name}"
+        t = _numbers(self.times, f"{name}: times")
+        v = _numbers(self.values, f"{name}: values")
+        w = np.ones_like(t) if self.weights is None else _numbers(self.weights, f"{name}: weights")
+        if not (t.size == v.size == w.size) or t.size == 0:
+            raise InputError(f"{name}: times, values (and weights) need one entry per measured "
+                             f"point, got {t.size}, {v.size}, {w.size}")
+        if np.any(np.diff(t) <= 0):
+            k = int(np.argmax(np.diff(t) <= 0))
+            raise InputError(f"{name}: the times must increase; time {float(t[k + 1])!r} (entry {k + 1}) "
+                             f"follows {float(t[k])!r}")
+        if t[0] <= 0 or t[-1] > 1 + TIME_TOL:
+            raise InputError(f"{name}: the times are load factors of the path, in (0, 1]; got "
+                             f"{float(t[0])!r} .. {float(t[-1])!r}")
+        if np.any(w < 0):
+            raise InputError(f"{name}: weights must be >= 0")
+        for k, a in (("times", t), ("values", v), ("weights", w)):
+            object.__setattr__(self, k, a)
+
+    @property
+    def name(self) -> str:
+        return self.response.name
+
+    @classmethod
+    def of(cls, spec) -> Curve:
+        """A curve from a :class:`Curve` or a tuple (response, times, values[, weights])."""
+        if isinstance(spec, Curve):
+            return spec
+        if isinstance(spec, (tuple, list)) and len(spec) in (3, 4):
+            return cls(*spec)
+        raise InputError("a curve is a signorini.Curve or a tuple (response, times, values[, weights]), "
+                         f"got {type(spec).__name__}")
+
+
+def _curves(curves) -> list[Curve]:
+    if isinstance(curves, Curve) or (isinstance(curves, tuple) and curves
+                                     and isinstance(curves[0], Response)):
+        curves = [curves]
+    out = [Curve.of(c) for c in curves]
+    if not out:
+        raise InputError("fit needs at least one measured curve")
+    return out
 
 
 # ---------------------------------------------------------------------- result
@@ -47,6 +140,8 @@ class FitResult:
             solves, time``.
         n_solves, n_failed: solves of the fit, and how many failed (penalised).
         success, message: the optimiser's verdict.
+        method, gradient: the optimiser and how it got the misfit's gradient (``"ddm"``
+            or ``"adjoint"``).
         warnings: the fit's warnings (ill-conditioning, bounds) and the solves'.
         solution: the :class:`~signorini.Solution` at the optimum.
         evaluations: every solve's :class:`~signorini.design.history.Evaluation`.
@@ -74,6 +169,7 @@ class FitResult:
     success: bool
     message: str
     method: str
+    gradient: str = "ddm"
     time: float = 0.0
     warnings: list = field(default_factory=list)
     solution: object = field(default=None, repr=False)
@@ -88,7 +184,8 @@ class FitResult:
         """The fitted values, standard errors and correlations, for a person."""
         w = max(9, *(len(n) for n in self.names))
         lines = [(f"fit of {', '.join(self.names)} to {len(self.curves)} curve(s), {self.n_data} data "
-                  f"({self.method}): {'converged' if self.success else 'NOT converged'} in "
+                  f"({self.method}{', adjoint gradient' if self.gradient == 'adjoint' else ''}): "
+                  f"{'converged' if self.success else 'NOT converged'} in "
                   f"{self.iterations} iterations, {self.n_solves} solves ({self.message})"),
                  f"  {'parameter':<{w}} {'start':>13} {'fitted':>15} {'std error':>11} {'rel.':>9}"]
         for i, n in enumerate(self.names):
