@@ -19,6 +19,16 @@ def test_indentation_fit(tmp_path):
     assert (tmp_path / "indentation_fit.png").stat().st_size > 0
 
 
+def test_fit_forging(tmp_path):
+    out = run("fit_forging", tmp_path)
+    assert out["success"] and out["n_solves"] <= 10
+    for n, true in out["truth"].items():  # 1 % noise, seed 0: within two standard errors
+        assert abs(out["values"][n] - true) <= 2 * out["stderr"][n]
+        assert 0.002 < out["stderr"][n] / true < 0.05  # SE ~ 2.5 % of sigma_y, 1.2 % of H
+    assert 0.5 < out["sigma"] < 1.5  # the weights are 1 / the noise's variance
+    assert (tmp_path / "fit_forging.png").stat().st_size > 0
+
+
 @pytest.mark.filterwarnings("ignore::signorini.SignoriniWarning")
 def test_press_then_slide(tmp_path):
     out = run("press_then_slide", tmp_path)
