@@ -59,6 +59,16 @@ class ObjectiveEvaluation:
                              f"({self.names})")
         return x + 0.0  # no -0.0: the cache key is the bytes of x
 
+    @property
+    def n_solves(self) -> int:
+        """Solves done (= evaluations recorded)."""
+        return len(self.records)
+
+    @property
+    def n_failed(self) -> int:
+        """Solves that failed (penalised)."""
+        return sum(not r.ok for r in self.records)
+
     # -------------------------------------------------------------- internals
 
     def _fn(self, model):

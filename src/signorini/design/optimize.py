@@ -266,15 +266,6 @@ class Objective(ObjectiveEvaluation):
         return None
 
     @property
-    def n_solves(self) -> int:
-        """Solves done (= evaluations recorded)."""
-        return len(self.records)
-
-    @property
-    def n_failed(self) -> int:
-        return sum(not r.ok for r in self.records)
-
-    @property
     def best(self) -> Evaluation | None:
         """The successful evaluation of the lowest F among the design points (the
         perturbed points of finite differences left out); None before the first."""
