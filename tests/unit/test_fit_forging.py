@@ -121,30 +121,60 @@ def test_the_adjoint_gradient_of_the_force_misfit_is_ddms_and_the_central_differ
             assert abs(fd / g[i] - 1) < 1e-6
 
 
-def test_with_one_percent_noise_the_truth_lies_within_two_standard_errors(measured):
-    """Gaussian noise of 1 % of the largest |force| on every datum, ten fixed seeds,
-    weights 1 / (that standard deviation)^2: the true sigma_y and H lie within two
-    of the fit's standard errors (from sg.fit's Gauss-Newton covariance) in at least
-    9 of the 10 (6 degrees of freedom: each 2-sigma interval covers the truth with
-    probability ~0.91, the t distribution's); the mean sigma is within 0.7 .. 1.3.
-    Each fit starts at the truth (the noise moves the optimum; the fit's own
-    iterations find it)."""
+def noisy_fit(measured, seed):
+    """The fit of a curve with Gaussian noise of 1 % of the largest |force| (seed),
+    weights 1 / (that standard deviation)^2, from the truth: (z = (fitted - true) / SE
+    per parameter, the residuals' scale sigma, the result)."""
     pb, _, F = measured
     sd = 0.01 * np.abs(F).max()
+    noisy = F + sd * np.random.default_rng(seed).standard_normal(F.size)
+    res = sg.fit(pb, NAMES, curve(measured, noisy, sd), options=TIGHT, max_solves=20)
+    assert res.success and res.n_failed == 0
+    return np.array([(res.values[n] - TRUE[n]) / res.stderr[n] for n in NAMES]), res.sigma, res
+
+
+def test_with_one_percent_noise_the_truth_lies_within_two_standard_errors(measured):
+    """Ten fixed seeds of noisy_fit: the true sigma_y and H lie within two of the
+    fit's standard errors (from sg.fit's Gauss-Newton covariance) in at least 9 of
+    the 10 (here 9: seed 8 puts sigma_y 3.6 SE off); the mean sigma is within
+    0.7 .. 1.3. The noise moves the optimum; the fit's own iterations find it.
+    With 6 degrees of freedom each 2-SE interval covers the truth with probability
+    ~0.91 (Student's t), both together ~0.85 (measured over 200 seeds, the slow test
+    below): 9 of 10 is what these seeds give, the calibration is the slow test's."""
     inside, sigmas = [], []
     for seed in range(10):
-        rng = np.random.default_rng(seed)
-        res = sg.fit(pb, NAMES, curve(measured, F + sd * rng.standard_normal(F.size), sd),
-                     options=TIGHT, max_solves=20)
-        assert res.success and res.n_failed == 0
-        z = [(res.values[n] - TRUE[n]) / res.stderr[n] for n in NAMES]
-        print(seed, res.values, res.stderr, z, res.sigma, res.n_solves)
+        z, sigma, res = noisy_fit(measured, seed)
+        print(seed, res.values, res.stderr, z, sigma, res.n_solves)
         inside.append(np.abs(z) <= 2)
-        sigmas.append(res.sigma)
+        sigmas.append(sigma)
         # the standard errors are those of 1 % noise: a few % of sigma_y, more of H
         assert 0.001 < res.stderr["sigma_y"] / TRUE["sigma_y"] < 0.2
+        assert res.stderr["H"] == pytest.approx(np.sqrt(res.covariance[1, 1]), rel=1e-14)
     inside = np.array(inside)
     print("inside 2 SE:", inside.sum(axis=0), "both:", inside.all(axis=1).sum(), "mean sigma",
           np.mean(sigmas))
     assert inside.all(axis=1).sum() >= 9
     assert 0.7 < np.mean(sigmas) < 1.3
+
+
+@pytest.mark.slow  # 200 fits, ~1.5 min; test_with_one_percent_noise_... runs the same code on 10 seeds
+def test_the_standard_errors_are_calibrated_over_200_seeds(measured):
+    """noisy_fit over 200 seeds: each parameter's 2-SE interval covers the truth in
+    0.85 .. 0.96 of them (Student's t with 6 degrees of freedom: 0.908, binomial
+    standard deviation 0.02; measured 0.89 and 0.885), and the errors in units of the
+    standard errors at the true scale, z sigma, have a standard deviation within
+    0.85 .. 1.15 (1 if the Gauss-Newton covariance is right; +-3 standard deviations
+    of the sample std of 200; measured 1.03 and 1.02) and a mean within
+    +-0.25 (measured 0.08 and -0.11: the model is nearly linear in them)."""
+    z, zk = [], []
+    for seed in range(200):
+        zi, sigma, _ = noisy_fit(measured, seed)
+        z.append(zi)
+        zk.append(zi * sigma)
+    z, zk = np.array(z), np.array(zk)
+    cover = (np.abs(z) <= 2).mean(axis=0)
+    print("coverage", cover, "both", (np.abs(z) <= 2).all(axis=1).mean(), "z sigma std",
+          zk.std(axis=0), "mean", zk.mean(axis=0))
+    assert np.all((0.85 <= cover) & (cover <= 0.96))
+    assert np.all((0.85 < zk.std(axis=0)) & (zk.std(axis=0) < 1.15))
+    assert np.all(np.abs(zk.mean(axis=0)) < 0.25)
