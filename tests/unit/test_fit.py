@@ -152,6 +152,25 @@ def test_the_adjoint_gradient_of_the_misfit_is_ddms_and_the_central_difference(m
             assert abs(fd / g[i] - 1) < 1e-6
 
 
+def test_the_adjoint_misfit_counts_only_the_increments_at_measured_times(measured):
+    """A curve measured at every other increment (steps=8 given): the summed
+    response is zero at the increments between its times (as at a cut increment),
+    so F and its adjoint gradient are still those of the data: r^T r and 2 J^T r of
+    DDM. Without the zero, responses.misfit summed over all increments adds the four
+    between, at interpolated values (F 3.4 times larger here)."""
+    pb, t, Fz, Fx = measured
+    m = Misfit(pb, ["E", "mu"], [(FZ, t[1::2], 1.02 * Fz[1::2], np.full(4, np.abs(Fz).max() ** -2)),
+                                 (FX, t, Fx, np.full(8, np.abs(Fx).max() ** -2))], steps=8, options=TIGHT)
+    x = np.array([90.0, 0.33])
+    F, g = m.objective().value_and_grad(x)
+    plain = sum(sg.Objective(pb, ["E", "mu"], sg.responses.misfit(c.response, c.times, c.values,
+                                                                  c.weights),
+                             steps=8, increments="all", options=TIGHT)(x) for c in m.curves)
+    print(F, m(x), plain, g, m.gradient(x))
+    assert F == pytest.approx(m(x), rel=1e-13) and plain > 2 * F
+    assert np.abs(g / m.gradient(x) - 1).max() < 1e-10
+
+
 def test_lbfgsb_with_the_adjoint_gradient_recovers_E_and_mu(measured):
     """The noise-free fit of the first test with L-BFGS-B on the adjoint gradient:
     E and mu to 1e-6 relative; the standard errors come from one more solve, with
