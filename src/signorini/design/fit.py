@@ -29,6 +29,12 @@ t_j < t_k+1 takes the linear interpolation of their values and sensitivities
 from the times and ``steps`` alone, never from a parameter; a cut increment
 adds increments but the data keep their times. The solve stops at the last
 measured time (``until``).
+
+With ``method="L-BFGS-B", gradient="adjoint"`` the gradient of F comes from one
+backward pass instead (:meth:`Misfit.objective`: F as
+:func:`~signorini.responses.misfit` summed over the increments at the measured
+times), and one solve with DDM sensitivities at the optimum gives J for the
+statistics.
 """
 
 from __future__ import annotations
