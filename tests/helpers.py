@@ -88,3 +88,16 @@ def check_fd_of_two_runs(tmp_path, argv, name: str, value: float, h: float) -> N
         runs.append(read_csv(o / "force.csv")["F_T"])
     fd = (runs[0] - runs[1]) / (2 * h)
     assert np.abs(fd - ddm).max() <= 1e-6 * np.abs(ddm).max()
+
+
+def misfit_matches_central_differences(m, x, g, J, rel=1e-4, tol=1e-6) -> None:
+    """A fit's misfit ``m`` (signorini.design.fit.Misfit) at ``x``: its gradient ``g``
+    and the residuals' Jacobian ``J`` equal central differences (step ``rel`` x_i)
+    of the misfit and of the residuals to ``tol`` relative."""
+    for i in range(len(x)):
+        e = np.zeros(len(x))
+        e[i] = h = rel * x[i]
+        fd = (m(x + e) - m(x - e)) / (2 * h)
+        fd_r = (m.residuals(x + e) - m.residuals(x - e)) / (2 * h)
+        assert abs(fd / g[i] - 1) < tol, (x, i, g[i], fd)
+        assert np.abs(fd_r - J[:, i]).max() < tol * np.abs(J[:, i]).max(), (x, i)

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from helpers import misfit_matches_central_differences
 from signorini.design.fit import Misfit
 from signorini.problems import forging
 
@@ -88,15 +89,7 @@ def test_the_gradient_of_the_force_misfit_is_its_central_difference(measured):
     assert m.steps == STEPS
     for x in (np.array([80.0, 1300.0]), np.array([115.0, 700.0])):
         g, J = m.gradient(x), m.jacobian(x)
-        for i in range(2):
-            h = 1e-4 * x[i]
-            e = np.zeros(2)
-            e[i] = h
-            fd = (m(x + e) - m(x - e)) / (2 * h)
-            fd_r = (m.residuals(x + e) - m.residuals(x - e)) / (2 * h)
-            print(x, i, g[i], fd, abs(fd / g[i] - 1))
-            assert abs(fd / g[i] - 1) < 1e-6
-            assert np.abs(fd_r - J[:, i]).max() < 1e-6 * np.abs(J[:, i]).max()
+        misfit_matches_central_differences(m, x, g, J)
 
 
 def test_the_adjoint_gradient_of_the_force_misfit_is_ddms_and_the_central_difference(measured):

@@ -253,14 +253,6 @@ class Misfit(ObjectiveEvaluation):
                                         solver=self.solver, label=self.label)
         return self._objective
 
-    @property
-    def n_solves(self) -> int:
-        return len(self.records)
-
-    @property
-    def n_failed(self) -> int:
-        return sum(not r.ok for r in self.records)
-
     # -------------------------------------------------------------- internals
     @property
     def _m(self) -> int:
