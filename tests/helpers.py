@@ -101,3 +101,17 @@ def misfit_matches_central_differences(m, x, g, J, rel=1e-4, tol=1e-6) -> None:
         fd_r = (m.residuals(x + e) - m.residuals(x - e)) / (2 * h)
         assert abs(fd / g[i] - 1) < tol, (x, i, g[i], fd)
         assert np.abs(fd_r - J[:, i]).max() < tol * np.abs(J[:, i]).max(), (x, i)
+
+
+def adjoint_misfit_is_ddms_and_central_differences(m, obj, x) -> None:
+    """The adjoint objective ``obj`` of a fit's misfit ``m`` at ``x``: its value is
+    r^T r (1e-13), its gradient the DDM's 2 J^T r (1e-10) and the central
+    differences (step 1e-4 x_i) of its own value (1e-6), relative."""
+    F, g = obj.value_and_grad(x)
+    assert abs(F / m(x) - 1) < 1e-13
+    assert np.abs(g / m.gradient(x) - 1).max() < 1e-10
+    for i in range(len(x)):
+        e = np.zeros(len(x))
+        e[i] = h = 1e-4 * x[i]
+        fd = (obj(x + e) - obj(x - e)) / (2 * h)
+        assert abs(fd / g[i] - 1) < 1e-6, (x, i, g[i], fd)
