@@ -109,6 +109,17 @@ def test_interrupt_keeps_the_history_and_resume_continues_it(tmp_path):
         pf.fit(f, tmp_path / "elsewhere", resume=True)
 
 
+def test_the_adjoint_gradient_from_a_file(tmp_path):
+    """gradient = "adjoint" with L-BFGS-B: the same values as the script's sg.fit
+    with the same options (one backward pass per point for both parameters)."""
+    f = _copy(tmp_path, lambda t: t.replace('method = "least_squares"',
+                                             'method = "L-BFGS-B"\ngradient = "adjoint"'))
+    s = pf.fit(f, tmp_path / "out")
+    assert s["success"] and s["method"] == "L-BFGS-B"
+    for n, v in TRUE.items():
+        assert abs(s["values"][n] / v - 1) < 1e-6, s["values"]
+
+
 def test_a_parameter_the_data_cannot_see_is_reported(tmp_path):
     """H is in [params] but in nothing of the problem: fit.json says the fit is
     ill-conditioned and why."""
@@ -148,6 +159,10 @@ BAD = [
      ["[fit.parameters] E bounds: need low < high"]),
     (lambda t: t.replace('method = "least_squares"', 'method = "newton"'), None,
      ["[fit] method: 'newton' is not one of 'least_squares', 'L-BFGS-B' (line 64)"]),
+    (lambda t: t.replace('method = "least_squares"', 'method = "least_squares"\ngradient = "adjoint"'),
+     None, ['[fit] gradient: the adjoint gradient is for method = "L-BFGS-B"']),
+    (lambda t: t.replace('method = "least_squares"', 'gradient = "forward"'), None,
+     ["[fit] gradient: 'forward' is not one of 'ddm', 'adjoint'"]),
     (lambda t: t.replace('weight = "relative"', 'weigth = "relative"', 1), None,
      ["[[fit.curve]] #1 unknown key 'weigth' (did you mean 'weight'?)", "(line 76)"]),
     (lambda t: t.split('[[fit.curve]]\nresponse = "Fx"')[0].replace("[[fit.curve]]", "[fit.curve]"),

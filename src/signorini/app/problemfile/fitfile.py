@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...design.fit import METHODS, TIME_TOL
+from ...design.fit import GRADIENTS, METHODS, TIME_TOL
 from ...errors import InputError, UnknownParameterError
 from .reader import Reader, Table, kind
 
@@ -39,6 +39,7 @@ class FitSpec:
     bounds: dict
     curves: tuple
     method: str = "least_squares"
+    gradient: str = "ddm"
     max_solves: int = 100
     tol: float = 1e-10
     steps: int | None = None
@@ -162,7 +163,8 @@ def _curve(rd: Reader, k: int, data, responses) -> MeasuredCurve:
 
 
 def read_fit(rd: Reader, data, responses) -> FitSpec:
-    t = Table(rd, "[fit]", data, {"parameters", "curve", "method", "max_solves", "tol", "steps"},
+    t = Table(rd, "[fit]", data, {"parameters", "curve", "method", "gradient", "max_solves", "tol",
+                                           "steps"},
               required=("parameters", "curve"))
     names, start, bounds = _parameters(rd, data["parameters"])
     items = data["curve"]
@@ -174,7 +176,12 @@ def read_fit(rd: Reader, data, responses) -> FitSpec:
     tol = t.real("tol", 1e-10, positive=True)
     if not tol < 1:
         raise t.err("tol", f"must be below 1, got {tol}")
+    method = t.string("method", "least_squares", choices=METHODS)
+    gradient = t.string("gradient", "ddm", choices=GRADIENTS)
+    if gradient == "adjoint" and method != "L-BFGS-B":
+        raise t.err("gradient", 'the adjoint gradient is for method = "L-BFGS-B" (least squares '
+                    "uses the residuals' Jacobian, from the DDM)")
     return FitSpec(names=names, start=start, bounds=bounds, curves=curves,
-                   method=t.string("method", "least_squares", choices=METHODS),
+                   method=method, gradient=gradient,
                    max_solves=t.integer("max_solves", 100, minimum=1), tol=tol,
                    steps=t.integer("steps", None, minimum=1) if t.has("steps") else None)

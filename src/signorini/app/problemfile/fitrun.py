@@ -124,7 +124,8 @@ def fit(path, out, *, solver="auto", progress=None, resume: bool = False,
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", SignoriniWarning)
             res = fit_curves(problem, names, curves, start=start, bounds=spec.bounds, steps=spec.steps,
-                             method=spec.method, tol=spec.tol, max_solves=spec.max_solves,
+                             method=spec.method, gradient=spec.gradient, tol=spec.tol,
+                             max_solves=spec.max_solves,
                              options=cfg.options, solver=solver, callback=callback)
     except KeyboardInterrupt:
         _write_history(out, names, rows, "interrupted")
