@@ -341,3 +341,43 @@ def test_the_documentation_example_runs_and_prints_what_it_shows():
     with contextlib.redirect_stdout(out):
         exec(compile(code[0], "docs/fitting.md", "exec"), {"__name__": "fitting"})
     assert out.getvalue().strip() == shown[0].strip()
+
+
+# ------------------------------------------------ a curve against a measured abscissa
+def _force_displacement():
+    """The Hertz half model under force control: the contact force P t against the
+    bottom's mean vertical displacement, which depends on E (the force does not)."""
+    from signorini.problems import hertz
+    pb = hertz.hertz_problem(n_fine=6, size=6)
+    force = sg.responses.contact_force(component=1)
+    lift = sg.responses.displacement("bottom", 1)
+    return pb, force, lift
+
+
+def test_a_curve_against_a_displacement_recovers_E_and_its_gradient_is_exact():
+    """A force-displacement curve (the abscissa a response, measured between the
+    increments): its model curve is the force interpolated at the measured
+    displacements, differentiated through the interpolation weights, so the
+    Jacobian is all in the abscissa's sensitivity here (the force is P t whatever
+    E): = central FD of the misfit and residuals (1e-6), and E recovered (1e-6)."""
+    pb, force, lift = _force_displacement()
+    sol = sg.solve(pb, steps=4, wrt=["E"])
+    X = np.array(lift.path(sol))
+    Y = np.array(force.path(sol))
+    xm = 0.5 * (X[:-1] + X[1:])  # between the increments
+    ym = np.interp(xm, X, Y)
+    curve = sg.Curve(force, xm, ym, abscissa=lift)
+    m = Misfit(pb.with_params(E=85.0), ["E"], [curve], steps=4)
+    # (at E = 80 a measured abscissa falls on an increment's, to 1e-9: the linear
+    # interpolant's kink, where the derivative is one-sided and FD averages the sides)
+    for E in (85.0, 95.0):
+        x = np.array([E])
+        misfit_matches_central_differences(m, x, m.gradient(x), m.jacobian(x))
+    res = sg.fit(pb.with_params(E=85.0), ["E"], [curve], steps=4)
+    assert abs(res.values["E"] / 100.0 - 1) < 1e-6, res.table()
+    with pytest.raises(sg.InputError, match="give steps"):
+        sg.fit(pb, ["E"], [curve])
+    with pytest.raises(sg.InputError, match="outside the model's path"):
+        sg.fit(pb, ["E"], [sg.Curve(force, [10 * X[-1]], [1.0], abscissa=lift)], steps=4)
+    with pytest.raises(sg.InputError, match="abscissa response takes gradient='ddm'"):
+        sg.fit(pb, ["E"], [curve], steps=4, method="L-BFGS-B", gradient="adjoint")

@@ -187,3 +187,31 @@ def test_fit_command_on_a_file_without_fit_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "no [fit] section" in err and "Traceback" not in err
     assert re.search(r"signorini: error: .*block.toml: no \[fit\] section", err)
+
+
+def test_a_curve_against_a_displacement_response_from_a_file(tmp_path):
+    """examples/block.toml under force control with a force-displacement curve
+    ([[fit.curve]] abscissa = the bottom's displacement, measured between the
+    increments): E recovered from 80 to 1e-6, the curve file's columns are the
+    displacement (not load factors), and a missing [fit] steps is named."""
+    text = (ROOT / "examples" / "block.toml").read_text().replace("nx = 32\nny = 16", "nx = 16\nny = 8")
+    text = text.split("[output]")[0].replace('sensitivities = ["R", "E", "W"]', 'sensitivities = ["E"]')
+    text += ('\n[[response]]\nname = "force"\ntype = "contact_force"\ncomponent = "y"\n'
+             '\n[[response]]\nname = "lift"\ntype = "displacement"\nset = "bottom"\ncomponent = "y"\n')
+    f = tmp_path / "block.toml"
+    f.write_text(text)
+    problem, cfg = pf.load(f)
+    force, lift = (r.public() for r in cfg.responses[1:])
+    sol = sg.solve(problem, steps=4)
+    X, Y = np.array(lift.path(sol)), np.array(force.path(sol))
+    xm = 0.5 * (X[:-1] + X[1:])
+    (tmp_path / "fd.csv").write_text("u,F\n" + "".join(f"{a:.17g},{b:.17g}\n" for a, b in zip(xm, np.interp(xm, X, Y))))
+    fit = ('\n[fit]\nsteps = 4\n[fit.parameters]\nE = { start = 80.0, bounds = [10.0, 1000.0] }\n'
+           '[[fit.curve]]\nresponse = "force"\nabscissa = "lift"\nfile = "fd.csv"\nx = "u"\ny = "F"\n')
+    f.write_text(text + fit)
+    s = pf.fit(f, tmp_path / "out")
+    assert s["success"] and abs(s["values"]["E"] / 100.0 - 1) < 1e-6, s["values"]
+    assert (tmp_path / "out" / "curve_force.csv").read_text().splitlines()[0].startswith("u,measured")
+    f.write_text(text + fit.replace("steps = 4\n", ""))
+    with pytest.raises(sg.InputError, match=r"\[fit\] steps: every curve is measured against an abscissa"):
+        pf.fit(f, tmp_path / "out2")

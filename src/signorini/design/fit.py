@@ -140,8 +140,12 @@ class Misfit(ObjectiveEvaluation):
             raise InputError(f"wrt lists a parameter twice: {self.names}")
         check_names(self.names, problem.params, "the parameters to fit (wrt)")
         self.curves = _curves(curves)
-        times = np.concatenate([c.times for c in self.curves])
+        timed = [c.times for c in self.curves if c.abscissa is None]
+        times = np.concatenate(timed) if timed else np.array([1.0])
         if steps is None:
+            if not timed:
+                raise InputError("steps=None derives the increments from the measured load factors, "
+                                 "but every curve is measured against an abscissa response: give steps")
             steps = _derived_steps(times)
         elif isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
             raise InputError(f"steps must be a positive integer or None (from the times), got {steps!r}")
@@ -227,6 +231,9 @@ class Misfit(ObjectiveEvaluation):
         increments (an interpolated datum is not a sum over increments)."""
         T = np.arange(1, self.steps + 1) / self.steps
         for c in self.curves:
+            if c.abscissa is not None:
+                raise InputError(f"curve {c.name}: the adjoint gradient needs curves measured at "
+                                 "load factors; one against an abscissa response takes gradient='ddm'")
             off = [float(t) for t in c.times if np.abs(T - t).min() > TIME_TOL]
             if off:
                 raise InputError(f"curve {c.name}: the adjoint gradient needs every measured time on "
@@ -295,6 +302,8 @@ class Misfit(ObjectiveEvaluation):
                 seen[i] = (v, np.array([s[n] for n in self.names]))
             return seen[i]
 
+        if c.abscissa is not None:
+            return self._against(sol, c, at)
         y, dy = np.empty(c.times.size), np.empty((c.times.size, len(self.names)))
         for j, t in enumerate(c.times):
             k = int(np.searchsorted(T, t))
@@ -308,6 +317,42 @@ class Misfit(ObjectiveEvaluation):
             else:
                 raise InputError(f"curve {c.name}: the time {float(t)!r} is outside the solved path "
                                  f"({T[0] if T.size else 0:.6g} .. {T[-1] if T.size else 0:.6g})")
+        return y, dy
+
+
+    def _against(self, sol, c: Curve, at):
+        """The response against the abscissa response at the measured abscissae:
+        between the increments k, k+1 whose abscissae x_k <= x* <= x_k+1 (x
+        increasing along the path), y = (1 - a) y_k + a y_k+1 with a = (x* - x_k) /
+        (x_k+1 - x_k), and its sensitivities through a's too."""
+        xs = {}
+
+        def x_at(i):
+            if i not in xs:
+                v, s = c.abscissa.of(sol, i)
+                xs[i] = (v, np.array([s[n] for n in self.names]))
+            return xs[i]
+
+        n = len(sol.increments)
+        X = np.array([x_at(i)[0] for i in range(n)])
+        if np.any(np.diff(X) <= 0):
+            raise InputError(f"curve {c.name}: its abscissa {c.abscissa.name} does not increase "
+                             "along the path, so the model's curve is not a function of it")
+        y, dy = np.empty(c.times.size), np.empty((c.times.size, len(self.names)))
+        for j, xm in enumerate(c.times):
+            k = int(np.searchsorted(X, xm))
+            if k == n and abs(xm - X[-1]) <= TIME_TOL * max(abs(X[-1]), 1.0):
+                k = n - 1
+            if not 0 < k < n:
+                raise InputError(f"curve {c.name}: the measured abscissa {float(xm)!r} is outside "
+                                 f"the model's path ({X[0]:.6g} .. {X[-1]:.6g} of "
+                                 f"{c.abscissa.name}): give a longer path or fewer data")
+            (x0, dx0), (x1, dx1) = x_at(k - 1), x_at(k)
+            (v0, s0), (v1, s1) = at(k - 1), at(k)
+            a = (xm - x0) / (x1 - x0)
+            da = -((1 - a) * dx0 + a * dx1) / (x1 - x0)
+            y[j] = (1 - a) * v0 + a * v1
+            dy[j] = (1 - a) * s0 + a * s1 + (v1 - v0) * da
         return y, dy
 
 

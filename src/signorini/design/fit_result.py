@@ -53,21 +53,28 @@ def _numbers(x, what: str) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Curve:
-    """A measured curve: a response at load factors (pseudo-times) with its values.
+    """A measured curve: a response at load factors (pseudo-times) with its values,
+    or against another response (a force against a measured displacement).
 
     Attributes:
         response: the :class:`~signorini.responses.Response` measured.
-        times: (k,) load factors, increasing, in (0, 1].
+        times: (k,) load factors, increasing, in (0, 1]; with ``abscissa``, the
+            measured values of that response instead (increasing).
         values: (k,) the measured values.
         weights: (k,) weights w >= 0 of the squared differences (default 1;
             1 / variance of the measurement for statistical standard errors,
             or any relative weights: the fit estimates the common scale).
+        abscissa: None (``times`` are load factors) or a Response whose value along
+            the path increases: the model's curve is then ``response`` against it,
+            interpolated linearly between increments at the measured abscissae
+            (the interpolation differentiated exactly, abscissae included).
     """
 
     response: Response
     times: np.ndarray
     values: np.ndarray
     weights: np.ndarray | None = None
+    abscissa: Response | None = None
 
     def __post_init__(self):
         if not isinstance(self.response, Response):
@@ -84,7 +91,10 @@ class Curve:
             k = int(np.argmax(np.diff(t) <= 0))
             raise InputError(f"{name}: the times must increase; time {float(t[k + 1])!r} (entry {k + 1}) "
                              f"follows {float(t[k])!r}")
-        if t[0] <= 0 or t[-1] > 1 + TIME_TOL:
+        if self.abscissa is not None and not isinstance(self.abscissa, Response):
+            raise InputError(f"{name}: the abscissa must be a signorini.responses Response (e.g. "
+                             f"sg.responses.displacement(...)), got {self.abscissa!r}")
+        if self.abscissa is None and (t[0] <= 0 or t[-1] > 1 + TIME_TOL):
             raise InputError(f"{name}: the times are load factors of the path, in (0, 1]; got "
                              f"{float(t[0])!r} .. {float(t[-1])!r}")
         if np.any(w < 0):
@@ -101,9 +111,10 @@ class Curve:
         """A curve from a :class:`Curve` or a tuple (response, times, values[, weights])."""
         if isinstance(spec, Curve):
             return spec
-        if isinstance(spec, (tuple, list)) and len(spec) in (3, 4):
+        if isinstance(spec, (tuple, list)) and len(spec) in (3, 4, 5):
             return cls(*spec)
-        raise InputError("a curve is a signorini.Curve or a tuple (response, times, values[, weights]), "
+        raise InputError("a curve is a signorini.Curve or a tuple (response, times, values[, weights"
+                         "[, abscissa]]), "
                          f"got {type(spec).__name__}")
 
 

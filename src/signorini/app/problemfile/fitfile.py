@@ -29,6 +29,7 @@ class MeasuredCurve:
     abscissa: np.ndarray  #: the CSV's abscissa (times, or a displacement: times * scale)
     x_label: str
     y_label: str
+    against: object = None  #: the [[response]] the abscissa is a value of, or None (load factors)
 
 
 @dataclass(frozen=True)
@@ -122,18 +123,24 @@ def _parameters(rd: Reader, data):
 
 def _curve(rd: Reader, k: int, data, responses) -> MeasuredCurve:
     where = f"[[fit.curve]] #{k + 1}"
-    t = Table(rd, where, data, {"response", "file", "x", "y", "weight", "scale"},
+    t = Table(rd, where, data, {"response", "file", "x", "y", "weight", "scale", "abscissa"},
               required=("response", "file", "y"))
-    rname = t.string("response")
     byname = {r.name: r for r in responses}
-    if rname not in byname:
-        raise t.err("response", f"{rname!r} is not the name of a [[response]] (they are "
-                                f"{', '.join(byname) or 'none'})")
-    resp = byname[rname]
-    try:
-        resp.public()
-    except InputError as e:
-        raise t.err("response", f"{e}") from None
+
+    def named(key):
+        rname = t.string(key)
+        if rname not in byname:
+            raise t.err(key, f"{rname!r} is not the name of a [[response]] (they are "
+                             f"{', '.join(byname) or 'none'})")
+        try:
+            byname[rname].public()
+        except InputError as e:
+            raise t.err(key, f"{e}") from None
+        return byname[rname]
+    resp = named("response")
+    against = named("abscissa") if t.has("abscissa") else None
+    if against is not None and t.has("scale"):
+        raise t.err("scale", "an abscissa measured as a response's values takes no scale")
     f = Path(t.string("file"))
     if not f.is_absolute():
         f = rd.path.parent / f
@@ -145,7 +152,7 @@ def _curve(rd: Reader, k: int, data, responses) -> MeasuredCurve:
     scale = t.real("scale", 1.0, positive=True)
     xs, ys, wc = read_csv(f, xname, yname, wcol, rd.label, where)
     times = xs / scale
-    if times[0] <= 0 or times[-1] > 1 + TIME_TOL:
+    if against is None and (times[0] <= 0 or times[-1] > 1 + TIME_TOL):
         raise t.err("x", f"the abscissae of {f.name} divided by scale = {scale:g} are load factors "
                          f"of the path, in (0, 1]; got {times[0]:.6g} .. {times[-1]:.6g}")
     if wc is not None:
@@ -159,7 +166,7 @@ def _curve(rd: Reader, k: int, data, responses) -> MeasuredCurve:
         weights = np.full(ys.size, 1.0 / peak ** 2)
     else:
         weights = np.full(ys.size, 1.0 if w is None else float(w))
-    return MeasuredCurve(resp, f, times, ys, weights, xs, xname, yname)
+    return MeasuredCurve(resp, f, times, ys, weights, xs, xname, yname, against)
 
 
 def read_fit(rd: Reader, data, responses) -> FitSpec:

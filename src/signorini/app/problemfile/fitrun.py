@@ -119,7 +119,12 @@ def fit(path, out, *, solver="auto", progress=None, resume: bool = False,
         if progress is not None:
             progress(row)
 
-    curves = [Curve(c.response.public(), c.times, c.values, c.weights) for c in spec.curves]
+    curves = [Curve(c.response.public(), c.times, c.values, c.weights,
+                    None if c.against is None else c.against.public()) for c in spec.curves]
+    if spec.steps is None and all(c.against is not None for c in spec.curves):
+        raise InputError(f"{cfg.path}: [fit] steps: every curve is measured against an abscissa "
+                         "response, so the increments cannot come from the load factors: give "
+                         "[fit] steps")
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", SignoriniWarning)
@@ -157,7 +162,9 @@ def fit(path, out, *, solver="auto", progress=None, resume: bool = False,
         "history": [{"iteration": r["iteration"], "F": r["F"], "x": r["x"]} for r in rows],
     }
     for c, y in zip(spec.curves, res.fitted):
-        cols = {"t": c.times, **({c.x_label: c.abscissa} if c.x_label != "t" else {}),
+        first = {c.x_label: c.abscissa} if c.against is not None else {
+            "t": c.times, **({c.x_label: c.abscissa} if c.x_label != "t" else {})}
+        cols = {**first,
                 "measured": c.values, "fitted": np.asarray(y), "weight": c.weights}
         io.write_csv(out / f"curve_{c.response.name}.csv", cols)
     (out / "fitted.toml").write_text(
