@@ -375,6 +375,9 @@ def test_a_curve_against_a_displacement_recovers_E_and_its_gradient_is_exact():
         misfit_matches_central_differences(m, x, m.gradient(x), m.jacobian(x))
     res = sg.fit(pb.with_params(E=85.0), ["E"], [curve], steps=4)
     assert abs(res.values["E"] / 100.0 - 1) < 1e-6, res.table()
+    # a measured abscissa on the first increment's own: that increment's value (a = 0)
+    first = sg.Curve(force, np.r_[X[0], xm], np.r_[Y[0], ym], abscissa=lift)
+    assert np.abs(Misfit(pb, ["E"], [first], steps=4).residuals(np.array([100.0]))).max() < 1e-12
     with pytest.raises(sg.InputError, match="give steps"):
         sg.fit(pb, ["E"], [curve])
     with pytest.raises(sg.InputError, match="outside the model's path"):

@@ -343,6 +343,8 @@ class Misfit(ObjectiveEvaluation):
             k = int(np.searchsorted(X, xm))
             if k == n and abs(xm - X[-1]) <= TIME_TOL * max(abs(X[-1]), 1.0):
                 k = n - 1
+            elif k == 0 and n > 1 and xm == X[0]:
+                k = 1  # the first increment's own abscissa: a = 0
             if not 0 < k < n:
                 raise InputError(f"curve {c.name}: the measured abscissa {float(xm)!r} is outside "
                                  f"the model's path ({X[0]:.6g} .. {X[-1]:.6g} of "
