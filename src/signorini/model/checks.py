@@ -270,6 +270,7 @@ class IncrementChecks:
         self.sizes = {}  # surface -> the local cell size at each contact node (friction)
         self.reference = {}  # surface -> its nodes' reference positions (friction: the rings)
         self.origin = {}  # surface -> where its contact zone's centre was first (reference)
+        self.left = set()  # surfaces whose zone has opened nodes it held (a zone that moves)
         X = None
         for i, s in enumerate(model.surfaces):
             if s.patches is not None and not model.linear_contact[i]:
@@ -324,6 +325,8 @@ class IncrementChecks:
                 if i in self.sizes and closed0.any() and closed1.any():
                     X = self.reference[i]
                     self.origin.setdefault(i, _centroid(X[closed0], before[i][2][closed0]))
+                    if (closed0 & ~closed1).any():  # nodes left behind: the zone moves
+                        self.left.add(i)
                 if i in self.sizes and t0 >= COARSE_PATH_FROM - 1e-12 and closed0.any():
                     new = closed1 & ~closed0
                     if new.any():
@@ -337,8 +340,12 @@ class IncrementChecks:
 
     def _travel(self, i, closed, p):
         """The unit direction in which surface i's contact zone has travelled since
-        it formed (its pressure-weighted centroid moved by more than a median
-        cell), or None (a zone that grows about its centre)."""
+        it formed (it has left nodes behind, open again, and its pressure-weighted
+        centroid moved by more than a median cell), or None (a zone that grows
+        about its centre: on a half or quarter model its centroid moves outwards
+        as it grows, but it opens no node)."""
+        if i not in self.left:
+            return None
         X = self.reference[i]
         d = _centroid(X[closed], p[closed]) - self.origin[i]
         n = float(np.linalg.norm(d))
