@@ -63,7 +63,7 @@ from .optimize import Objective
 
 log = logging.getLogger("signorini")
 
-__all__ = ["METHODS", "Curve", "FitResult", "Misfit", "fit"]
+__all__ = ["GRADIENTS", "METHODS", "Misfit", "fit"]
 
 #: optimisers of :func:`fit`
 METHODS = ("least_squares", "L-BFGS-B")
