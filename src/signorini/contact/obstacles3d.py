@@ -82,8 +82,6 @@ def rotation_at(rotation, params, t):
 
 
 def _rotation_legs(rotation, what: str):
-    if rotation is None:
-        return None
     return motion_legs(rotation, 3, what + " (rotation)")
 
 
@@ -110,11 +108,6 @@ class _Surface:
     def project(self, x, geo):
         """The closest point of the obstacle, in the global frame."""
         return geo["c"] + geo["Q"] @ self.closest(x, geo)
-
-    @staticmethod
-    def to_global(geo, v):
-        """A difference of closest points (the obstacle's frame) in the global axes."""
-        return geo["Q"] @ v
 
     def _frame(self, params, t):
         """(shift, Q): the translation and rotation since t = 0."""

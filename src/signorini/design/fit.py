@@ -291,17 +291,22 @@ class Misfit(ObjectiveEvaluation):
                          solution=sol)
         return Point(x, "ok", r, J, fitted, sol)
 
-    def _curve(self, sol, T: np.ndarray, c: Curve):
-        """(k,) the response at the curve's times and (k, n) its sensitivities:
-        an increment's, or the linear interpolation between the two around t."""
+    def _reader(self, sol, response):
+        """at(i) -> (value, (n,) DDM sensitivities) of ``response`` at increment i,
+        each increment read once."""
         seen = {}
 
         def at(i):
             if i not in seen:
-                v, s = c.response.of(sol, i)
+                v, s = response.of(sol, i)
                 seen[i] = (v, np.array([s[n] for n in self.names]))
             return seen[i]
+        return at
 
+    def _curve(self, sol, T: np.ndarray, c: Curve):
+        """(k,) the response at the curve's times and (k, n) its sensitivities:
+        an increment's, or the linear interpolation between the two around t."""
+        at = self._reader(sol, c.response)
         if c.abscissa is not None:
             return self._against(sol, c, at)
         y, dy = np.empty(c.times.size), np.empty((c.times.size, len(self.names)))
@@ -319,20 +324,12 @@ class Misfit(ObjectiveEvaluation):
                                  f"({T[0] if T.size else 0:.6g} .. {T[-1] if T.size else 0:.6g})")
         return y, dy
 
-
     def _against(self, sol, c: Curve, at):
         """The response against the abscissa response at the measured abscissae:
         between the increments k, k+1 whose abscissae x_k <= x* <= x_k+1 (x
         increasing along the path), y = (1 - a) y_k + a y_k+1 with a = (x* - x_k) /
         (x_k+1 - x_k), and its sensitivities through a's too."""
-        xs = {}
-
-        def x_at(i):
-            if i not in xs:
-                v, s = c.abscissa.of(sol, i)
-                xs[i] = (v, np.array([s[n] for n in self.names]))
-            return xs[i]
-
+        x_at = self._reader(sol, c.abscissa)
         n = len(sol.increments)
         X = np.array([x_at(i)[0] for i in range(n)])
         if np.any(np.diff(X) <= 0):
