@@ -32,7 +32,6 @@ from ..model.problem import Problem
 from ..model.kernels import Model
 from ..linsolve import check_size
 from .. import responses
-from .._jax import jnp
 from ..algorithms.coarse_to_fine import solve_coarse_to_fine
 from ..algorithms.prolongation import Prolongation
 from ..algorithms.stepping import model_for
