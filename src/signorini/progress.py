@@ -72,8 +72,9 @@ class SolveProgress:
         # with a bar the line would only repeat it: DEBUG (shown by --verbose, which has no bars)
         floor = getattr(steplog, "stop", "") == "round-off floor"
         log.log(logging.DEBUG if self._bar is not None else logging.INFO,
-                "[%s] increment %d (t = %.4g of 1, nominal %d): %d Newton it, |R| %s%s", self.label,
-                self.n_inc, t, self.steps, steplog.iterations,
+                "[%s] increment %d (t = %.4g of 1, nominal %d): %d Newton it%s, |R| %s%s",
+                self.label, self.n_inc, t, self.steps, steplog.iterations,
+                steplog.linear_summary() if hasattr(steplog, "linear_summary") else "",
                 " ".join(f"{r:.1e}" for r in steplog.residuals),
                 f", at the round-off floor ({steplog.relative_residual:.1e} of the reference)"
                 if floor else "")

@@ -56,6 +56,13 @@ class NewtonOptions:
             starting), where it starts from the last state; ``"none"``
             starts from the last converged state. Only the start changes, not
             the converged point (docs/theory.md §10).
+        reuse_factor: how a direct solver's factorisations serve later tangents
+            (:mod:`signorini.linsolve.kept`): ``"auto"`` (default) solves a
+            tangent by GMRES preconditioned by the last factorisation while that
+            costs less than factorising it (3-D tangents; none in 2-D, where a
+            factorisation costs a few back-substitutions), ``"always"`` does so
+            for every factor, ``"never"`` factorises every tangent. Only the cost
+            changes: the corrections are solved to the same tolerances.
     """
 
     rtol: float = 1e-10
@@ -70,6 +77,7 @@ class NewtonOptions:
     step_tol: float = 1e-9
     floor_max: float = 1e-7
     predictor: str = "extrapolate"
+    reuse_factor: str = "auto"
 
     def __post_init__(self):
         if not (self.rtol > 0 or self.atol > 0):
@@ -89,6 +97,9 @@ class NewtonOptions:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v == v and abs(v) != float("inf")):
                 raise InputError(f"NewtonOptions: {name} must be a finite number, got {v!r}")
+        if self.reuse_factor not in ("auto", "always", "never"):
+            raise InputError(f"NewtonOptions: reuse_factor must be 'auto', 'always' or 'never', "
+                             f"got {self.reuse_factor!r}")
         if self.predictor not in ("extrapolate", "none"):
             raise InputError(f"NewtonOptions: predictor must be 'extrapolate' or 'none', got "
                              f"{self.predictor!r}")
@@ -115,6 +126,13 @@ class StepLog:
     time_assembly: float = 0.0
     time_factorization: float = 0.0
     time_solve: float = 0.0
+    #: tangents factorised in this increment, by Newton and for its sensitivities (the
+    #: others were solved by Krylov on a kept factorisation: linsolve.kept)
+    factorizations: int = 0
+    #: Krylov iterations on a kept factorisation in this increment
+    krylov_iterations: int = 0
+    #: why each factorisation was made (linsolve.kept.KeptFactor.reasons)
+    refactorizations: list[str] = field(default_factory=list)
 
     @property
     def iterations(self) -> int:
@@ -126,7 +144,14 @@ class StepLog:
         state = "converged" if self.converged else f"FAILED ({self.reason})"
         if self.stop == "round-off floor":
             state += f" at the round-off floor ({self.relative_residual:.1e} of the reference)"
-        return f"t={self.t:.6g} dt={self.dt:.3g}: {state} in {self.iterations} it, |R|: {res}"
+        return (f"t={self.t:.6g} dt={self.dt:.3g}: {state} in {self.iterations} it"
+                f"{self.linear_summary()}, |R|: {res}")
+
+    def linear_summary(self) -> str:
+        """', F factorisations, K Krylov iterations' where a kept factor served."""
+        if not self.krylov_iterations:
+            return ""
+        return f", {self.factorizations} factorisations, {self.krylov_iterations} Krylov it"
 
 
 class StepFailure(Exception):
@@ -289,6 +314,8 @@ def newton(model, pattern, solver, w, params, t, state_n, options: NewtonOptions
         at_floor = forcing <= floor * (1.0 + 1e-12)
         fac, dw = _correction(pattern, solver, blocks, Rf, options, steplog, first=(k == 0),
                               forcing=forcing)
+        # a Krylov correction that went further than asked reached the floor as well
+        at_floor = at_floor or fac.relative_residual <= floor
         w[free] += dw
     raise AssertionError("unreachable")
 
@@ -344,9 +371,12 @@ def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool,
     t0 = time.perf_counter()
     K = pattern.assemble(blocks)
     steplog.time_assembly += time.perf_counter() - t0
+    kept = getattr(solver, "kept", None)  # a TangentSolver's factorisations (linsolve.kept)
+    counts = None if kept is None else (kept.factorizations, kept.krylov_iterations,
+                                        len(kept.reasons))
     t0 = time.perf_counter()
     try:
-        fac = solver.factorize(K, blocks)
+        fac = solver.factor(K, blocks) if kept is not None else solver.factorize(K, blocks)
     except SingularTangentError as e:
         raise StepFailure(str(e), fatal=first) from None
     steplog.time_factorization += time.perf_counter() - t0
@@ -358,6 +388,10 @@ def _correction(pattern, solver, blocks, Rf, options, steplog, first: bool,
         raise StepFailure(str(e), fatal=first) from None
     lin = fac.relative_residual  # linsolve.Factor: every solver's factors are one
     steplog.time_solve += time.perf_counter() - t0
+    if counts is not None:
+        steplog.factorizations += kept.factorizations - counts[0]
+        steplog.krylov_iterations += kept.krylov_iterations - counts[1]
+        steplog.refactorizations += kept.reasons[counts[2]:]
     if lin > (max(options.singular_check, 2 * forcing) if inexact else options.singular_check):
         raise StepFailure(f"singular tangent (linear residual {lin:.1e})", fatal=first)
     return fac, dw

@@ -230,7 +230,8 @@ class _LoadPath:
         # a pattern seen for the first time is analysed with every contact node closed
         self.lin = TangentSolver(kept_solver(model, solver, stack),
                                  symmetric_candidate=not model.has_history,
-                                 analysis=lambda: model.analysis_tangent(params))
+                                 analysis=lambda: model.analysis_tangent(params),
+                                 reuse=options.reuse_factor)
         self.ddm = ddm_for(model, names)
         self.weights = model.convergence_weights(params)
         self.sol = sol = Solution(model, dict(problem.params), names)
@@ -441,7 +442,14 @@ class _LoadPath:
                 raise self.fail(f"the converged tangent at t={t_new:.6g} is singular, so no adjoint "
                                 f"can be computed: {e}") from None
         if self.ddm is not None:
+            kept = self.lin.kept
+            before = (kept.factorizations, kept.krylov_iterations, len(kept.reasons))
             self._sensitivities(inc, K, loads, last_fac, t_new, t_k)
+            # the increment's count includes its sensitivities' factorisation, if any
+            inc.newton.factorizations += kept.factorizations - before[0]
+            inc.newton.krylov_iterations += kept.krylov_iterations - before[1]
+            inc.newton.refactorizations += [f"sensitivities: {r}"
+                                            for r in kept.reasons[before[2]:]]
 
     def _sensitivities(self, inc, K, loads, last_fac, t_new, t_k) -> None:
         """The DDM of the converged increment: one back-substitution per parameter
@@ -471,7 +479,9 @@ class _LoadPath:
                 w_dot, reused = None, False  # failed or short of a fresh solve: factorise
         if w_dot is None:
             try:
-                fac = self.lin.factorize(K)
+                # the converged tangent, or GMRES on the factorisation Newton kept while
+                # that pays (linsolve.kept): checked and refined as a fresh solve is
+                fac = self.lin.factor(K)
             except SingularTangentError as e:
                 raise self.fail(f"the converged tangent at t={t_new:.6g} is singular, so the "
                                 f"sensitivities are undefined: {e}") from None

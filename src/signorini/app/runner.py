@@ -105,6 +105,12 @@ def newton_log(solution) -> dict:
             "newton_residuals": [inc.newton.residuals for inc in incs],
             "newton_relative_residuals": [float(inc.newton.relative_residual) for inc in incs],
             "newton_stops": [inc.newton.stop for inc in incs],
+            # the tangents factorised (Newton's and the sensitivities'), the Krylov
+            # iterations on a kept factorisation, and why each factorisation was made
+            # (linsolve.kept: "first", "cap", "budget", "small", "never", "direct")
+            "factorizations": [inc.newton.factorizations for inc in incs],
+            "kept_factor_krylov_iterations": [inc.newton.krylov_iterations for inc in incs],
+            "refactorizations": [inc.newton.refactorizations for inc in incs],
             # where Newton's time went, summed over the increments (the fine mesh's)
             "newton_time_s": {k: round(sum(getattr(inc.newton, "time_" + k, 0.0) for inc in incs), 3)
                               for k in ("assembly", "factorization", "solve")}}

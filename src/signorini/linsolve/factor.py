@@ -53,6 +53,7 @@ class Factor:
         self.backward_error = 0.0  # of the last solve (worst column)
         self.relative_residual = 0.0  # max over columns of ||K x - b|| / ||b|| of the last solve
         self.nbytes: int | None = None  # memory of the factors, where the solver reports it
+        self.flops: float | None = None  # operations of the factorisation, where it reports them
         #: backward error below which a solve is not refined (an iterative backend's is
         #: its own tolerance's, not round-off)
         self.refine_tol = REFINE_TOL

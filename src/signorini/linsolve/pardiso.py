@@ -138,6 +138,7 @@ class _Handle:
         ip[10] = 1  # scaling
         ip[12] = 1 if self.matching else 0  # weighted matching (zero diagonals of multipliers)
         ip[17] = -1  # report the factor's non-zeros
+        ip[18] = -1  # report the factorisation's floating-point operations (millions)
         ip[20] = 1  # Bunch-Kaufman pivoting (symmetric indefinite)
         ip[34] = 1  # zero-based indices
         self.threads = mkl_max_threads(self._f)
@@ -326,6 +327,7 @@ class Pardiso(LinearSolver):
         h.generation += 1
         factor.owner = self  # keeps this solver, and so its PARDISO handles, alive
         factor.nbytes = 8 * abs(int(h.iparm[17]))  # iparm(18): non-zeros of the factors
+        factor.flops = 1e6 * abs(float(h.iparm[18]))  # iparm(19): MFLOP of the factorisation
         return factor
 
     def describe(self) -> str:

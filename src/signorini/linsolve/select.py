@@ -14,6 +14,7 @@ from ..errors import InputError
 from .base import LinearSolver
 from .factor import Factor
 from .iterative import AMGKrylov
+from .kept import KeptFactor
 from .pardiso import Pardiso
 from .superlu import SuperLU
 from .umfpack import Umfpack
@@ -143,15 +144,30 @@ class TangentSolver:
     first tangent factorised, and that choice is kept for the whole path.
     """
 
-    def __init__(self, solver: LinearSolver, symmetric_candidate: bool, analysis=None):
+    def __init__(self, solver: LinearSolver, symmetric_candidate: bool, analysis=None,
+                 reuse: str = "auto"):
         self.solver = solver
         self._candidate = symmetric_candidate
         self.symmetric: bool | None = None
         self._analysis = analysis  # () -> tangent to analyse the pattern with (PARDISO)
+        # an iterative backend's "factorisation" is its preconditioner, which it reuses
+        # in its own way: every tangent goes to it
+        iterative = callable(getattr(solver, "bind", None))
+        #: the factorisations of the path, each kept to solve the tangents near it
+        self.kept = KeptFactor(self._factorize, "never" if iterative else reuse)
+
+    def factor(self, K: sp.spmatrix, blocks=None) -> Factor:
+        """A :class:`Factor` of K: GMRES on the factorisation kept from an earlier
+        tangent while that pays, else K factorised (and kept): :mod:`.kept`."""
+        return self.kept.factor(K, blocks)
 
     def factorize(self, K: sp.spmatrix, blocks=None) -> Factor:
-        """Factorise K; ``blocks`` (the local blocks K was assembled from), if
-        given, let the first call decide symmetry on them (:func:`blocks_symmetric`)."""
+        """Factorise K (and keep the factor for :meth:`factor`); ``blocks`` (the
+        local blocks K was assembled from), if given, let the first call decide
+        symmetry on them (:func:`blocks_symmetric`)."""
+        return self.kept.fresh(K, blocks, "direct")
+
+    def _factorize(self, K: sp.spmatrix, blocks=None) -> Factor:
         if self.symmetric is None:
             self.symmetric = bool(self._candidate and (
                 (blocks is not None and blocks_symmetric(blocks)) or is_symmetric(K)))

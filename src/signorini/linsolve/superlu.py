@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 import logging
 
 from ..errors import SingularTangentError
@@ -39,4 +41,8 @@ class SuperLU(LinearSolver):
         f = Factor(lambda b, transpose=False: lu.solve(b, trans="T" if transpose else "N"), K,
                    transposable=True)
         f.nbytes = 12 * (lu.L.nnz + lu.U.nnz) + 8 * A.shape[0]  # values + row indices, permutations
+        # the elimination's operations: column j of L times row j of U, outer products
+        col = np.diff(lu.L.indptr) - 1
+        row = np.bincount(lu.U.indices, minlength=A.shape[0]) - 1
+        f.flops = float(2 * np.dot(col.astype(float), row.astype(float)) + col.sum())
         return f

@@ -204,14 +204,14 @@ MAX_COARSE_LEVELS = 3
 
 def coarse_levels(refine: int, n_fine: int = 24, coarsest: int = COARSEST) -> list[tuple[int, int]]:
     """(refine, n_fine) of the meshes that start a one-step solve, coarsest first:
-    the cell count across the fine zone halved down to ``coarsest``, at most
+    the cell count across the fine zone halved (rounded up) down to ``coarsest``, at most
     :data:`MAX_COARSE_LEVELS` of them (see :mod:`signorini.algorithms.coarse_to_fine`)."""
     out, r, n = [], refine, n_fine
     while len(out) < MAX_COARSE_LEVELS:
         if r > 0:
             r -= 1
-        elif n % 2 == 0 and n // 2 >= coarsest:
-            n //= 2
+        elif (n + 1) // 2 >= coarsest:
+            n = (n + 1) // 2  # an odd count: the meshes are not nested, the start is interpolated
         else:
             break
         out.append((r, n))
