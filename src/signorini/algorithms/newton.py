@@ -56,6 +56,13 @@ class NewtonOptions:
             starting), where it starts from the last state; ``"none"``
             starts from the last converged state. Only the start changes, not
             the converged point (docs/theory.md §10).
+        start: the first iterate of the first increment where no other is given
+            (no ``start=`` and no coarser mesh): ``"auto"`` (default) starts 3-D
+            problems of at least :data:`signorini.algorithms.coarse_algebraic.AUTO_NODES`
+            nodes against rigid obstacles from an algebraic coarse problem
+            (docs/theory.md §10.3), ``"coarse"`` does so for every problem with
+            contact, ``"rest"`` starts from the undeformed state. Only the start
+            changes, not the converged point.
         reuse_factor: how a direct solver's factorisations serve later tangents
             (:mod:`signorini.linsolve.kept`): ``"auto"`` (default) solves a
             tangent by GMRES preconditioned by the last factorisation while that
@@ -77,6 +84,7 @@ class NewtonOptions:
     step_tol: float = 1e-9
     floor_max: float = 1e-7
     predictor: str = "extrapolate"
+    start: str = "auto"
     reuse_factor: str = "auto"
 
     def __post_init__(self):
@@ -97,6 +105,9 @@ class NewtonOptions:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v == v and abs(v) != float("inf")):
                 raise InputError(f"NewtonOptions: {name} must be a finite number, got {v!r}")
+        if self.start not in ("auto", "coarse", "rest"):
+            raise InputError(f"NewtonOptions: start must be 'auto', 'coarse' or 'rest', got "
+                             f"{self.start!r}")
         if self.reuse_factor not in ("auto", "always", "never"):
             raise InputError(f"NewtonOptions: reuse_factor must be 'auto', 'always' or 'never', "
                              f"got {self.reuse_factor!r}")

@@ -69,6 +69,9 @@ class Solution:
         self.warnings: list[str] = []  # suspicious results found on the way (see signorini.checks)
         self.solver: str | None = None  # linear solver used (``auto`` resolved)
         self.linear_solver = None  # that solver object
+        #: what the algebraic coarse start of the first increment did, if it ran
+        #: (algorithms.coarse_algebraic): coarse unknowns, iterations, time, or why abandoned
+        self.coarse_start: dict | None = None
         self.symmetric: bool | None = None  # symmetric factorisation of the tangent?
         self.shape_gradient = None  # (n_nodes, dim) adjoint gradient written with the last increment
         self.jax_params = as_jax(params)

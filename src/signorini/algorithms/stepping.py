@@ -29,6 +29,7 @@ from ..model.kernels import Model
 from ..model import checks
 from .newton import NewtonOptions, StepFailure, StepLog, newton
 from ..params import as_jax, check_names
+from . import coarse_algebraic
 from ..progress import SolveProgress
 from ..model.problem import Problem
 from ..sensitivity import nonsmooth
@@ -317,7 +318,11 @@ class _LoadPath:
         # like sqrt(t) are not smooth in t; docs/theory.md §10.3)
         predicted = (not started and not guided and self.options.predictor == "extrapolate"
                      and self.w_prev is not None and self._smooth_path(t_new))
-        if started or guided or predicted:
+        coarse = None
+        if first and not started and not guided and coarse_algebraic.wanted(model, self.options):
+            coarse, self.sol.coarse_start = coarse_algebraic.AlgebraicStart(model)(
+                w_trial, params, t_new, self.state_n)
+        if started or guided or predicted or coarse is not None:
             # the reference norm of the convergence test is that of the unpredicted start
             # (the last state under the new load), so that a better start does not make
             # the test stricter than the round-off floor, where Newton would stagnate
@@ -328,6 +333,8 @@ class _LoadPath:
                 start = self.initial
             elif guided:
                 start = self.guides.start(t, t_new, w, first)
+            elif coarse is not None:
+                start = coarse
             else:
                 start = w + (t_new - t) / (t - self.t_prev) * (w - self.w_prev)
             w_trial[model.free] = start[model.free]

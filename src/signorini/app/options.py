@@ -201,7 +201,8 @@ def coarse_start_option(p):
     p.add_argument("--no-coarse-start", action="store_true",
                    help="start Newton from the undeformed state (later increments from the "
                         "extrapolating predictor) instead of from coarser meshes solved along the "
-                        "same load path, interpolated (the result is the same)")
+                        "same load path, interpolated, or (a 3-D mesh without coarser ones) from "
+                        "an algebraic coarse problem (the result is the same)")
 
 
 def solver_options(p):

@@ -101,7 +101,11 @@ def newton_log(solution) -> dict:
     factorisation and the solves (an iterative solver builds its multigrid
     hierarchy in a tangent's first solve: counted there)."""
     incs = solution.increments
-    return {"newton_iterations": solution.newton_iterations,
+    extra = {}
+    if getattr(solution, "coarse_start", None) is not None:
+        # the algebraic coarse start of the first increment (algorithms.coarse_algebraic)
+        extra["algebraic_start"] = solution.coarse_start
+    return {**extra, "newton_iterations": solution.newton_iterations,
             "newton_residuals": [inc.newton.residuals for inc in incs],
             "newton_relative_residuals": [float(inc.newton.relative_residual) for inc in incs],
             "newton_stops": [inc.newton.stop for inc in incs],

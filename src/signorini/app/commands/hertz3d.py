@@ -6,6 +6,8 @@ sensitivities checked by central differences."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ... import timing
@@ -129,6 +131,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int | None 
         n_fine = N_FINE_AXISYMMETRIC if axisymmetric else N_FINE
     out = prepare_output(out)
     options = options or NewtonOptions(rtol=RTOL)
+    if not coarse_start:  # nor the algebraic coarse start of a mesh without coarser ones
+        options = dataclasses.replace(options, start="rest")
     solver = use_solver(solver)
     pb = hertz3d_problem(params, refine=refine, n_fine=n_fine, size=size, zone=zone,
                          axisymmetric=axisymmetric, force_size=force_size, solver=solver)
@@ -196,7 +200,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int | None 
         "p0": {"computed": p0_fe, "analytical": an["p0"], "rel_error": p0_fe / an["p0"] - 1},
         "a": {"computed": a_fe, "analytical": an["a"], "rel_error": a_fe / an["a"] - 1,
               "error_in_cells": (a_fe - an["a"]) / mesh_info["contact_cell_size"]},
-        "coarse_start": levels if levels else (skipped or "no coarser mesh"),
+        "coarse_start": levels if levels else (
+            {"algebraic": sol.coarse_start} if sol.coarse_start else (skipped or "no coarser mesh")),
         "c_over_a": zone_info["c_over_a"] if friction else "frictionless",
         "c_over_a_bracket": zone_info["c_over_a_bracket"] if friction else "frictionless",
         "analytical_comparison": validity.comparison(invalid),

@@ -117,7 +117,9 @@ name of a parameter of ``[params]``, which makes it a design variable):
 ``[solve]``
     ``steps`` (int >= 1, default 1), ``sensitivities`` (list of parameter
     names), and the Newton options ``rtol``, ``atol``, ``max_iter``,
-    ``max_cuts``, ``predictor`` (``"extrapolate"`` | ``"none"``) (defaults of
+    ``max_cuts``, ``predictor`` (``"extrapolate"`` | ``"none"``), ``start``
+    (``"auto"`` | ``"coarse"`` | ``"rest"``: the first increment's start),
+    ``reuse_factor`` (``"auto"`` | ``"always"`` | ``"never"``) (defaults of
     :class:`~signorini.algorithms.newton.NewtonOptions`).
 ``[[response]]``
     ``name`` (unique), ``type``: one of :mod:`signorini.responses` by name

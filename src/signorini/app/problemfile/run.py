@@ -179,7 +179,8 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
         "steps": cfg.steps, "sensitivities": list(cfg.sensitivities),
         "options": {"rtol": cfg.options.rtol, "atol": cfg.options.atol,
                     "max_iter": cfg.options.max_iter, "max_cuts": cfg.options.max_cuts,
-                    "predictor": cfg.options.predictor},
+                    "predictor": cfg.options.predictor, "start": cfg.options.start,
+                    "reuse_factor": cfg.options.reuse_factor},
     }
 
     solver = use_solver(solver)
@@ -215,8 +216,15 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
         summary["newton_log"] = [  # every attempted increment, including cut and failed ones
             {"t": float(s.t), "dt": float(s.dt), "iterations": s.iterations,
              "converged": bool(s.converged), "relative_residual": _finite(s.relative_residual),
+             "factorizations": s.factorizations, "kept_factor_krylov_iterations": s.krylov_iterations,
+             **({"refactorizations": s.refactorizations} if s.refactorizations else {}),
              **({"stop": s.stop} if s.stop else {}), **({"reason": s.reason} if s.reason else {})}
             for s in getattr(sol, "log", [])]
+        summary["factorizations"] = [inc.newton.factorizations for inc in sol.increments]
+        summary["kept_factor_krylov_iterations"] = [inc.newton.krylov_iterations
+                                                    for inc in sol.increments]
+        if getattr(sol, "coarse_start", None) is not None:
+            summary["algebraic_start"] = sol.coarse_start
         summary["warnings"] = _jsonable(list(cfg.warnings) + list(getattr(sol, "warnings", [])))
     else:
         summary.update(increments=0, load_factors=[], newton_iterations=[], newton_log=[],

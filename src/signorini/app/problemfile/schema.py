@@ -232,7 +232,7 @@ def _load(rd: Reader, k: int, data, mesh):
 
 def _solve(rd: Reader, data):
     t = Table(rd, "[solve]", data, {"steps", "sensitivities", "rtol", "atol", "max_iter", "max_cuts",
-                                    "predictor"})
+                                    "predictor", "start", "reuse_factor"})
     steps = t.integer("steps", 1, minimum=1)
     sens = t.get("sensitivities", [])
     if not isinstance(sens, list) or not all(isinstance(s, str) for s in sens):
@@ -254,8 +254,12 @@ def _solve(rd: Reader, data):
                          atol=t.real("atol", d.atol, nonnegative=True),
                          max_iter=t.integer("max_iter", d.max_iter, minimum=1),
                          max_cuts=t.integer("max_cuts", d.max_cuts, minimum=0),
-                         predictor=t.string("predictor", d.predictor, choices=("extrapolate", "none"))) \
-        if any(t.has(k) for k in ("rtol", "atol", "max_iter", "max_cuts", "predictor")) else d
+                         predictor=t.string("predictor", d.predictor, choices=("extrapolate", "none")),
+                         start=t.string("start", d.start, choices=("auto", "coarse", "rest")),
+                         reuse_factor=t.string("reuse_factor", d.reuse_factor,
+                                               choices=("auto", "always", "never"))) \
+        if any(t.has(k) for k in ("rtol", "atol", "max_iter", "max_cuts", "predictor", "start",
+                                  "reuse_factor")) else d
     if not (opts.rtol > 0 or opts.atol > 0):
         raise t.err("rtol", "rtol or atol must be positive")
     return steps, tuple(sens), opts
