@@ -139,8 +139,8 @@ def run(tree: str | None, args: list[str], out: Path) -> dict:
     env = dict(os.environ)
     if tree:
         env["PYTHONPATH"] = tree
-    cmd = [sys.executable, "-c", "import sys; from signorini.app.cli import main; "
-           "sys.exit(main(sys.argv[1:]))", *args, "--out", str(out), "-q"]
+    main = "import sys; from signorini.app.cli import main; sys.exit(main(sys.argv[1:]))"
+    cmd = [sys.executable, "-c", main, *args, "--out", str(out), "-q"]
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     _, status, usage = os.wait4(proc.pid, 0)

@@ -11,7 +11,13 @@ from signorini.algorithms.newton import NewtonOptions
 from signorini.algorithms.stepping import model_for
 from signorini.errors import InputError
 from signorini.linsolve import get_solver
-from signorini.linsolve.kept import MIN_BUDGET, KeptFactor, Krylov, budget_of, is_kept_solve
+from signorini.linsolve.kept import (
+    MIN_BUDGET,
+    KeptFactor,
+    Krylov,
+    budget_of,
+    is_kept_solve,
+)
 from signorini.problems.hertz3d import hertz3d_problem
 
 

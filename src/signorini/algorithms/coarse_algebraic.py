@@ -6,17 +6,21 @@ rest and close the contact zone one ring of nodes per iteration. The start
 built here comes from the fine problem itself:
 
 * the displacements are restricted to a coarse space u = P u_c: the mesh's
-  nodes grouped into aggregates of neighbours (the iterative solver's
-  geometric aggregation), on each the six rigid-body modes of its nodes
-  (orthonormalised), smoothed by one damped Jacobi step with the tangent so
-  that P's columns deform like the body does;
+  nodes grouped twice into aggregates of neighbours (by the geometric
+  strength of the iterative solver's aggregation), on each the six
+  rigid-body modes of its nodes (orthonormalised), smoothed by one damped
+  Jacobi step with the tangent so that P's columns deform like the body does;
 * the multipliers are held at their start (zero on a first increment), where
   the Alart-Curnier contact forces are penalty forces eps <-g>: the coarse
-  problem P^T R_u(w + P u_c) = 0 is a penalty contact problem of a few
-  thousand unknowns, solved by Newton (its tangent P^T K_uu P, the bulk part
-  kept from the start, the contact rows' change added each iteration);
-* its displacements, interpolated by P, start the fine Newton: its first
-  iteration sees the contact zone the coarse problem found.
+  problem P^T R_u(w + P u_c) = 0 is a penalty contact problem of about 5 %
+  of the unknowns, solved by Newton (its tangent P^T K_uu P, the bulk part
+  kept from the start, the contact rows' part of each iterate);
+* the contact zone it finds, with ZONE_RINGS rings of neighbours, is freed to
+  its nodes (the coarse space elsewhere) and solved again from there: the
+  zone's edge to within a node or two;
+* its displacements start the fine Newton, the normal multipliers at the
+  penalty pressures: the first fine correction enforces the gaps of the zone
+  the coarse problem found.
 
 Only the start changes, never the converged result. A coarse problem that does
 not converge within its budget, or whose tangent is singular, is abandoned and
@@ -31,8 +35,11 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from .._jax import to_device
 from ..errors import SingularTangentError
+from ..fem.assembly import SparsityPattern
 from ..linsolve import get_solver
+from ..linsolve.multigrid import _lambda_max
 
 log = logging.getLogger("signorini")
 
@@ -43,8 +50,6 @@ AUTO_NODES = 5_000
 MAX_ITERATIONS = 40
 #: the coarse problem is solved to this residual, relative to its first one
 RTOL = 1e-8
-#: layers of nodes below the contact surfaces aggregated as finely as they are
-LAYERS = 2
 #: rings of neighbours around the first stage's contact zone free in the second
 ZONE_RINGS = 4
 #: a neighbour is strongly connected when |x_i - x_j|^-2 >= THETA max_k |x_i - x_k|^-2
@@ -60,20 +65,12 @@ def _node_graph(K_uu: sp.csr_matrix, u_nodes: np.ndarray, n_nodes: int) -> sp.cs
     return G + sp.eye(n_nodes, format="csr")
 
 
-def aggregates(G: sp.csr_matrix, X: np.ndarray, keep: np.ndarray | None = None,
-               passes: int = 2) -> np.ndarray:
+def aggregates(G: sp.csr_matrix, X: np.ndarray, passes: int = 2) -> np.ndarray:
     """(n_nodes,) the aggregate of every node: each node grouped with its strongly
     connected neighbours, ``passes`` times (the aggregates of aggregates,
-    neighbours where two touch, at their centroids); an aggregate holding a node
-    of the mask ``keep`` (the contact surfaces' nodes) takes part in the first
-    pass only, so that the coarse space resolves the contact zone twice as finely
-    as the bulk."""
+    neighbours where two touch, at their centroids)."""
     agg = np.arange(G.shape[0])
-    held = np.zeros(G.shape[0], bool) if keep is None else np.asarray(keep, bool)
-    for k in range(passes):
-        if k and held.any():  # aggregates with a contact node: no neighbours, stay alone
-            H = sp.diags((~held).astype(float))
-            G = (H @ G @ H + sp.diags(held.astype(float))).tocsr()
+    for _ in range(passes):
         a = _one_pass(G, X)
         alone = np.flatnonzero(a < 0)  # pyamg leaves isolated nodes out: each its own
         a[alone] = a.max(initial=-1) + 1 + np.arange(alone.size)
@@ -81,7 +78,6 @@ def aggregates(G: sp.csr_matrix, X: np.ndarray, keep: np.ndarray | None = None,
         count = np.maximum(np.asarray(A.sum(axis=0)).ravel(), 1.0)
         X = (A.T @ X) / count[:, None]
         G = (A.T @ G @ A).tocsr()
-        held = (A.T @ held.astype(float)) > 0
         agg = a[agg]
     return agg
 
@@ -145,8 +141,6 @@ def tentative(agg: np.ndarray, X: np.ndarray, u_nodes: np.ndarray, u_comp: np.nd
 
 def _smoothed(P0: sp.csr_matrix, K_uu: sp.csr_matrix) -> sp.csr_matrix:
     """One damped Jacobi step, P = (I - omega D^-1 K) P0, omega = 4 / (3 lambda_max)."""
-    from ..linsolve.multigrid import _lambda_max  # noqa: PLC0415
-
     d = K_uu.diagonal()
     Dinv = sp.diags(np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 0.0)).tocsr()
     lam = _lambda_max(K_uu, Dinv, K_uu.shape[0])
@@ -182,21 +176,13 @@ class AlgebraicStart:
         u_nodes, u_comp = np.divmod(u_dofs, m.dim)
         X = np.asarray(m.reference_nodes, dtype=float)
         G = self._graph = _node_graph(K_uu, u_nodes, m.n_nodes)
-        on_surface = np.zeros(m.n_nodes, bool)
-        for surf in m.surfaces:
-            on_surface[np.asarray(surf.nodes)] = True
-        near = on_surface.astype(float)
-        for _ in range(LAYERS):  # and the layers of nodes below them
-            near = G @ near
-        agg = aggregates(G, X, near > 0)
+        agg = aggregates(G, X)
         P0 = tentative(agg, X, u_nodes, u_comp, m.dim)
         return _smoothed(P0, K_uu)
 
     def _contact_uu(self, blocks, n_u):
         """The contact blocks' displacement-displacement part (n_u, n_u)."""
         if self._contact_pattern is None:
-            from ..fem.assembly import SparsityPattern  # noqa: PLC0415
-
             m = self.model
             self._contact_pattern = SparsityPattern(m.block_dofs()[1:], m.n_dof, m.free)
         return self._contact_pattern.assemble(blocks[1:])[:n_u, :n_u].tocsr()
@@ -208,7 +194,7 @@ class AlgebraicStart:
         clock = time.perf_counter()
         free = np.asarray(m.free)
         n_u = int(np.sum(free < m.dim * m.n_nodes))
-        R, blocks = m.local_tangents(w0, params, t, state_n)
+        _, blocks = m.local_tangents(w0, params, t, state_n)
         K0 = m.pattern.assemble(blocks).tocsr()[:n_u, :n_u].tocsr()
         if self._P is None:
             self._P = self._space(K0, n_u)
@@ -252,8 +238,6 @@ class AlgebraicStart:
         the penalty pressure (closed where w penetrates); the others as they
         were. The fine Newton's first correction then enforces the gaps instead of
         building the pressures."""
-        from .._jax import to_device  # noqa: PLC0415
-
         m = self.model
         w_gap = w
         w = (w if into is None else into).copy()
@@ -272,7 +256,7 @@ class AlgebraicStart:
         neighbours around them, free; None if no node is in contact."""
         m = self.model
         free = np.asarray(m.free)
-        R, blocks = m.local_tangents(w, params, t, state_n)
+        _, blocks = m.local_tangents(w, params, t, state_n)
         C = self._contact_uu(blocks, n_u)
         # a contact row of an active node has stiffness: the nodes of those rows
         active_rows = np.flatnonzero(np.abs(C).sum(axis=1).A.ravel() > 0)

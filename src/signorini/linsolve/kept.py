@@ -1,10 +1,11 @@
-"""Tangents solved on a kept factorisation (docs/theory.md §10.4).
+"""Tangents solved on a kept factorisation (docs/theory.md §10.8).
 
 Newton's tangents within an increment, and from one increment to the next,
 differ mostly in the rows of the contact nodes that close, open, stick or
 slip. A change of k rows is a rank-k perturbation of the factorised matrix:
-GMRES (here its twin GCR) preconditioned by the kept factorisation converges in at most about
-k + 1 iterations, each one back-substitution and one product with K. In 3-D,
+GMRES (here its twin GCR) preconditioned by the kept factorisation converges
+in at most about k + 1 iterations, each one back-substitution and one
+product with K. In 3-D,
 where a factorisation costs some fifty back-substitutions, that is cheaper
 than factorising again as long as few rows changed; :class:`KeptFactor`
 solves so while it pays and factorises afresh when it stops paying:
@@ -37,7 +38,7 @@ import logging
 
 import numpy as np
 
-from ..errors import InputError, SingularTangentError
+from ..errors import InputError
 from .factor import Factor
 
 log = logging.getLogger("signorini")
@@ -150,9 +151,9 @@ class KeptFactor:
         budget: a fixed budget instead of the estimate (:func:`budget_of`).
 
     Counters (the whole path): :attr:`factorizations`, :attr:`krylov_iterations`,
-    :attr:`reasons` (why each factorisation after the first was made: ``"first"``,
-    ``"cap"``, ``"budget"``, ``"small"`` for a factor too small to reuse, or
-    ``"never"``).
+    :attr:`reasons` (why each factorisation was made: ``"first"``, ``"cap"``,
+    ``"budget"``, ``"rows"``, ``"accuracy"``, ``"transpose"``, ``"small"`` for a
+    factor too small to reuse, ``"never"``, ``"direct"`` for one asked for).
     """
 
     def __init__(self, factorize, reuse: str = "auto", budget: int | None = None):
@@ -168,11 +169,6 @@ class KeptFactor:
         self.krylov_iterations = 0
         self.krylov_solves = 0
         self.reasons: list[str] = []
-
-    def forget(self) -> None:
-        """Drop the kept factor (its matrix is no longer near the next tangents:
-        another model, or a factorisation made elsewhere replaced it)."""
-        self._kept = None
 
     def _reusable(self, fac: Factor | None) -> str:
         """'' if ``fac`` may precondition the next tangent, else why not."""
