@@ -262,7 +262,6 @@ def test_several_right_hand_sides_share_their_search_space(monkeypatch):
     deflation), so it needs fewer iterations than alone, for the same solutions."""
     captured = []
     real = AMGKrylov._shared_gmres
-    monkeypatch.setattr(AMGKrylov, "BLOCK", False)  # the columns one after the other
 
     def keep(self, K, apply, b, rtol, x0=None):
         captured.append((K, apply, b, self.structure))
@@ -328,8 +327,7 @@ def test_a_solve_starts_from_its_guess_where_the_guess_is_better_than_none():
         captured.append((self, K))
         return real(self, K, apply, b, rtol, x0)
     import unittest.mock as um
-    with um.patch.object(AMGKrylov, "_shared_gmres", keep), \
-            um.patch.object(AMGKrylov, "BLOCK", False):
+    with um.patch.object(AMGKrylov, "_shared_gmres", keep):
         sg.solve(pb, steps=2, wrt=["R", "E"], solver=AMGKrylov())
     lin, K = captured[-1]
     rng = np.random.default_rng(0)
@@ -337,22 +335,17 @@ def test_a_solve_starts_from_its_guess_where_the_guess_is_better_than_none():
     b = np.column_stack([K @ x_true[:, j] for j in range(2)])
     f = lin.factorize(K)
     assert f.takes_guess and not get_solver("superlu").factorize(K).takes_guess
-    for together in (False, True):  # the columns one after the other, and together
-        lin.BLOCK = together
-        counts = {}
-        for name, guess in [("none", None), ("exact", x_true), ("bad", -3.0 * x_true),
-                            ("near", x_true + 1e-3 * rng.standard_normal(x_true.shape))]:
-            n0 = len(lin.iterations)
-            x = f.solve(b, guess=guess)
-            counts[name] = lin.iterations[n0:]
-            for j in range(2):
-                assert np.linalg.norm(b[:, j] - K @ x[:, j]) <= 1e-11 * np.linalg.norm(b[:, j])
-        assert counts["exact"] == [0, 0]
-        assert counts["bad"] == counts["none"]  # declined: ||b - K x0|| = 4 ||b||
-        # the first solve of each column (a refinement may follow where the row-wise
-        # backward error lands above the solver's 1e-10: the block's first solve from
-        # "near", 17 iterations, then 24 for its refinement, against 23 without)
-        assert sum(counts["near"][:2]) < sum(counts["none"][:2])
+    counts = {}
+    for name, guess in [("none", None), ("exact", x_true), ("bad", -3.0 * x_true),
+                        ("near", x_true + 1e-3 * rng.standard_normal(x_true.shape))]:
+        n0 = len(lin.iterations)
+        x = f.solve(b, guess=guess)
+        counts[name] = lin.iterations[n0:]
+        for j in range(2):
+            assert np.linalg.norm(b[:, j] - K @ x[:, j]) <= 1e-11 * np.linalg.norm(b[:, j])
+    assert counts["exact"] == [0, 0]
+    assert counts["bad"] == counts["none"]  # declined: ||b - K x0|| = 4 ||b||
+    assert sum(counts["near"]) < sum(counts["none"])
     direct = get_solver("superlu").factorize(K)
     assert np.abs(direct.solve(b, guess=-3.0 * x_true) - x_true).max() <= 1e-9 * np.abs(x_true).max()
 
@@ -365,7 +358,6 @@ def test_sensitivity_solves_start_from_the_increments_before(monkeypatch):
     from signorini.algorithms import stepping
     pb = hertz3d_friction(block(n=5))
     runs = {}
-    monkeypatch.setattr(AMGKrylov, "BLOCK", False)  # the columns one after the other
     for guess in (True, False):
         if not guess:
             monkeypatch.setattr(stepping._LoadPath, "_sensitivity_guess", lambda self, t: None)
@@ -404,34 +396,3 @@ def test_newton_with_an_iterative_solver_ends_without_a_wasted_correction():
         assert inc.newton.converged and len(res) >= 2
         assert res[-1] < 0.5 * res[-2], res
 
-
-
-def test_several_right_hand_sides_solved_as_a_block(monkeypatch):
-    """The sensitivities' columns solved together (block GCR, one V-cycle on the
-    block): the same solutions as each column alone, in fewer preconditioner
-    applications; the V-cycle on a block equals it on each column."""
-    captured = []
-    real = AMGKrylov._block_gcr
-
-    def keep(self, K, apply, b, rtol, x0=None):
-        captured.append((K, apply, b))
-        return real(self, K, apply, b, rtol, x0)
-    monkeypatch.setattr(AMGKrylov, "_block_gcr", keep)
-    sg.solve(hertz3d_friction(block(n=5)), steps=2, wrt=["R", "E", "eps", "mu"],
-             solver=AMGKrylov())
-    K, apply, b = captured[-1]
-    assert b.shape[1] == 4
-    cols = np.column_stack([apply(np.ascontiguousarray(c)) for c in b.T])
-    assert np.abs(apply(b) - cols).max() <= 1e-12 * np.abs(cols).max()
-    together, alone = AMGKrylov(), AMGKrylov()
-    alone.RECYCLE_BYTES = 0  # each column by its own GMRES
-    alone.BLOCK = False
-    x = real(together, K, apply, b, 1e-11)
-    y = alone._krylov(K, apply, b)
-    for j in range(4):
-        assert np.linalg.norm(b[:, j] - K @ x[:, j]) <= 1e-11 * np.linalg.norm(b[:, j])
-    assert np.abs(x - y).max() <= 1e-8 * np.abs(y).max()
-    # one block iteration applies the preconditioner to every unconverged column: at
-    # most 4 times the block iterations, fewer than the columns' own iterations in all
-    assert together.iterations[0] <= max(alone.iterations) + 2
-    assert 4 * together.iterations[0] < 1.5 * sum(alone.iterations)

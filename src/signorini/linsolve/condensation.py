@@ -95,8 +95,6 @@ class Condensed:
         n_u = self.n_u
 
         def apply(r):
-            if r.ndim == 2:  # a block of vectors: column by column
-                return np.column_stack([apply(np.ascontiguousarray(c)) for c in r.T])
             r_u = np.array(r[:n_u], dtype=float)
             r_l = r[n_u:]
             xp = np.zeros(n_u)

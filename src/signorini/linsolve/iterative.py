@@ -189,12 +189,8 @@ class AMGKrylov(LinearSolver):
     MAX_COARSE = 500
     #: strength (pyamg's symmetric measure) of the couplings that smooth the prolongator
     FILTER = 0.1
-    #: memory of the search space several right-hand sides share (:meth:`_block_gcr`,
-    #: :meth:`_shared_gmres`)
+    #: memory of the search space several right-hand sides share (:meth:`_shared_gmres`)
     RECYCLE_BYTES = 500_000_000
-    #: several right-hand sides solved together (:meth:`_block_gcr`); False: one after
-    #: the other, each recycling the spaces of those before (:meth:`_shared_gmres`)
-    BLOCK = True
 
     def __init__(self, rtol: float = 1e-11, restart: int = 100, max_iterations: int = 2000,
                  theta: float = 0.05, condense: bool | str = "symmetric"):
@@ -349,22 +345,14 @@ class AMGKrylov(LinearSolver):
             B[st.u_global] = modes(B[st.u_global])
         aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
         u_full = np.zeros(N)
-
-        def embedded(r_u):
-            """r_u on every node's DOFs (zero on the held ones); a block of vectors too."""
-            if r_u.ndim == 1:
-                u_full[:] = 0.0
-                u_full[st.u_global] = r_u
-                return u_full
-            out = np.zeros((N, r_u.shape[1]))
-            out[st.u_global] = r_u
-            return out
         if not aggregates:  # no larger than a coarse level: its exact solve is the preconditioner
             import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
             lu = spla.splu(full.tocsc())
 
             def exact(r_u):
-                return lu.solve(embedded(r_u))[st.u_global]
+                u_full[:] = 0.0
+                u_full[st.u_global] = r_u
+                return lu.solve(u_full)[st.u_global]
             return exact
         with _fixed_random_start():
             ml = pyamg.smoothed_aggregation_solver(
@@ -379,7 +367,9 @@ class AMGKrylov(LinearSolver):
         del ml
 
         def v_cycle(r_u):
-            return cycle(embedded(r_u))[st.u_global]
+            u_full[:] = 0.0
+            u_full[st.u_global] = r_u
+            return cycle(u_full)[st.u_global]
         return v_cycle
 
     def _apply(self, v_cycle, multipliers):
@@ -493,76 +483,6 @@ class AMGKrylov(LinearSolver):
             self.iterations.append(its)
         return x
 
-    def _block_gcr(self, K, apply, b, rtol: float, x0=None):
-        """Several right-hand sides of one tangent (the sensitivities) at once: block
-        GCR with right preconditioning. Each iteration applies the preconditioner to
-        the residuals of the columns not yet converged together (one V-cycle on a
-        block of vectors reads every level's matrices once for all of them, where
-        a column at a time reads them once per column), orthonormalises their
-        images K Z against the kept ones and among themselves (directions that
-        add nothing dropped), and updates every column along the new directions
-        (each column's residual minimal over the whole space). The space is kept
-        to at most :attr:`RECYCLE_BYTES`, then restarted from the iterates. A
-        column the recurrence calls converged but whose true residual is above
-        ``rtol`` (drift near round-off) ends with flexible GMRES from its iterate."""
-        n, k = b.shape
-        Kp = RowSplit(K)  # products on all the cores (multigrid.RowSplit)
-        X = np.zeros((n, k))
-        nb = np.linalg.norm(b, axis=0)
-        for j in range(k):
-            start = None if x0 is None else _start(Kp, b[:, j], x0[:, j])
-            if start is not None:
-                X[:, j] = start[0]
-        R = b - Kp @ X if x0 is not None else b.copy()
-        target = rtol * np.where(nb > 0, nb, 1.0)
-        cap = max(2 * k, int(self.RECYCLE_BYTES // (16 * n)))
-        Zs: list = []
-        Cs: list = []
-        its = 0
-        while its < self.max_iterations:
-            active = np.flatnonzero(np.linalg.norm(R, axis=0) > target)
-            if not active.size:
-                break
-            if sum(z.shape[1] for z in Zs) + active.size > cap:  # memory: restart
-                Zs, Cs = [], []
-            Z = np.asarray(apply(R[:, active]), dtype=float).reshape(n, active.size)
-            W = Kp @ Z
-            for _ in range(2):  # twice is enough (Kahan): the images stay orthonormal
-                for Zi, Ci in zip(Zs, Cs):
-                    H = Ci.T @ W
-                    W -= Ci @ H
-                    Z -= Zi @ H
-            keep = []
-            for c in range(W.shape[1]):  # within the block, dropping what adds nothing
-                w, z = W[:, c], Z[:, c]
-                before = float(np.linalg.norm(w))
-                for d in keep:
-                    h = float(W[:, d] @ w)
-                    w -= h * W[:, d]
-                    z -= h * Z[:, d]
-                nw = float(np.linalg.norm(w))
-                if nw > 1e-10 * max(before, 1e-300) and np.isfinite(nw):
-                    w /= nw
-                    z /= nw
-                    keep.append(c)
-            its += 1
-            if not keep:
-                break
-            Z, W = Z[:, keep], W[:, keep]
-            A = W.T @ R
-            X += Z @ A
-            R -= W @ A
-            Zs.append(Z)
-            Cs.append(W)
-        del Zs, Cs
-        for j in range(k):
-            self.iterations.append(its)
-            if np.linalg.norm(b[:, j] - Kp @ X[:, j]) > rtol * nb[j]:
-                X[:, j], more = self._fgmres(K, apply, b[:, j], rtol, x0=X[:, j].copy(),
-                                             budget=self.max_iterations - its, spent=its)
-                self.iterations[-1] += more
-        return X
-
     @staticmethod
     def _norm(K) -> float:
         """||K||_inf (the largest absolute row sum), kept on the matrix."""
@@ -576,8 +496,6 @@ class AMGKrylov(LinearSolver):
         """x with ||K x - b|| <= rtol ||b|| (b (n,) or (n, k)), from ``x0`` (shaped as
         b) in the columns where it leaves a smaller residual than zero does."""
         b = np.asarray(b, dtype=float)
-        if b.ndim == 2 and b.shape[1] > 1 and self.BLOCK:
-            return self._block_gcr(K, apply, b, self.rtol if rtol is None else rtol, x0)
         if b.ndim == 2 and b.shape[1] > 1 and self.RECYCLE_BYTES > 0:
             return self._shared_gmres(K, apply, b, self.rtol if rtol is None else rtol, x0)
         if b.ndim == 2:

@@ -100,9 +100,9 @@ class RowSplit:
 
     def __matmul__(self, x):
         n = _THREADS[0]
-        if n == 1 or self.shape[0] < SPLIT_ROWS or x.ndim not in (1, 2):
+        if n == 1 or self.shape[0] < SPLIT_ROWS or x.ndim != 1:
             return self.M @ x
-        y = np.empty((self.shape[0],) + x.shape[1:], dtype=np.result_type(self.dtype, x.dtype))
+        y = np.empty(self.shape[0], dtype=np.result_type(self.dtype, x.dtype))
 
         def rows(part):
             a, b, Mp = part
@@ -186,9 +186,7 @@ class _Level:
 
 class ChebyshevCycle:
     """x = V(b): one V-cycle of pyamg's hierarchy ``ml`` with Chebyshev smoothing
-    (the module's text); a level in BSR format is smoothed with its nodal blocks.
-    ``b`` one vector or a block of them (columns): each level's matrices are then
-    read once for the whole block."""
+    (the module's text); a level in BSR format is smoothed with its nodal blocks."""
 
     def __init__(self, ml):
         self.levels = [_Level(lv, COARSE_DEGREE if i else DEGREE)
@@ -201,9 +199,6 @@ class ChebyshevCycle:
         if i == 0:
             b = np.asarray(b, dtype=float)
         if i == len(self.levels):
-            if b.ndim == 2:  # a block of vectors: the (small) coarse solve column by column
-                return np.column_stack([np.asarray(self._coarse(np.ascontiguousarray(c))).ravel()
-                                        for c in b.T])
             return np.asarray(self._coarse(b)).ravel()
         lv = self.levels[i]
         x = lv.smooth(b)
