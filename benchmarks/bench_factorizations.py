@@ -55,39 +55,15 @@ def tet_problem(where: Path, n_fine: int = 19) -> Path:
     (the graded grid's points jittered by up to a fifth of the spacing, then
     Delaunay), written as a gmsh file and a problem file; returns the latter."""
     import meshio
-    from scipy.spatial import Delaunay
 
-    from signorini.problems.hertz3d import DEFAULTS, grid
+    from signorini.problems.hertz3d import DEFAULTS, grid, tetrahedral_block
 
-    xs, zs, _ = grid(n_fine=n_fine)
-    Z, Y, X = np.meshgrid(zs, xs, xs, indexing="ij")
-    P = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
-    lo, hi = P.min(axis=0), P.max(axis=0)
-
-    def spacing(g, v):
-        i = np.clip(np.searchsorted(g, v), 1, len(g) - 1)
-        return g[i] - g[i - 1]
-
-    h = np.column_stack([spacing(xs, P[:, 0]), spacing(xs, P[:, 1]), spacing(zs, P[:, 2])])
-    J = np.random.default_rng(0).uniform(-0.2, 0.2, P.shape) * h.min(axis=1)[:, None]
-    J[np.isclose(P, lo) | np.isclose(P, hi)] = 0.0
-    P = P + J
-    cells = Delaunay(P).simplices
-    e = P[cells[:, 1:]] - P[cells[:, :1]]
-    flip = np.einsum("ij,ij->i", np.cross(e[:, 0], e[:, 1]), e[:, 2]) < 0
-    cells[flip] = cells[flip][:, [0, 2, 1, 3]]
-    # boundary triangles: faces of one tetrahedron only
-    faces = np.sort(cells[:, [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]].reshape(-1, 3), axis=1)
-    uniq, count = np.unique(faces, axis=0, return_counts=True)
-    bnd = uniq[count == 1]
-    centre = P[bnd].mean(axis=1)
-    tol = 1e-9 * float((hi - lo).max())
-    groups = {"x0": (0, lo[0]), "y0": (1, lo[1]), "z0": (2, lo[2]), "z1": (2, hi[2])}
-    tri, tags = [], []
-    for k, (name, (d, value)) in enumerate(groups.items()):
-        sel = bnd[np.abs(centre[:, d] - value) <= tol]
-        tri.append(sel)
-        tags.append(np.full(len(sel), k + 2))
+    block = tetrahedral_block(n_fine=n_fine)
+    P, cells = block.nodes, block.cells
+    xs = grid(n_fine=n_fine)[0]
+    groups = ("x0", "y0", "z0", "z1")
+    tri = [block.face_sets[name] for name in groups]
+    tags = [np.full(len(t), k + 2) for k, t in enumerate(tri)]
     mesh = meshio.Mesh(P, [("tetra", cells), ("triangle", np.concatenate(tri))],
                        cell_data={"gmsh:physical": [np.ones(len(cells), int), np.concatenate(tags)],
                                   "gmsh:geometrical": [np.ones(len(cells), int),

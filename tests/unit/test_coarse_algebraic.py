@@ -9,42 +9,11 @@ import signorini as sg
 from signorini.algorithms import coarse_algebraic as ca
 from signorini.algorithms.newton import NewtonOptions
 from signorini.fem.mesh3d import Mesh3D
-from signorini.problems.hertz3d import grid, hertz3d_problem
+from signorini.problems.hertz3d import hertz3d_problem, tetrahedral_block
 
 
-def unstructured_block(n_fine: int, seed: int = 0) -> Mesh3D:
-    """The graded block of ``hertz3d`` as an unstructured tetrahedral mesh: its grid
-    points moved at random by up to a fifth of the local spacing (not across the
-    box's faces), then tetrahedralised by Delaunay."""
-    from scipy.spatial import Delaunay
-
-    xs, zs, _ = grid(n_fine=n_fine)
-    Z, Y, X = np.meshgrid(zs, xs, xs, indexing="ij")
-    P = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
-    lo, hi = P.min(axis=0), P.max(axis=0)
-
-    def spacing(g, v):
-        i = np.clip(np.searchsorted(g, v), 1, len(g) - 1)
-        return g[i] - g[i - 1]
-
-    h = np.column_stack([spacing(xs, P[:, 0]), spacing(xs, P[:, 1]), spacing(zs, P[:, 2])])
-    J = np.random.default_rng(seed).uniform(-0.2, 0.2, P.shape) * h.min(axis=1)[:, None]
-    J[np.isclose(P, lo) | np.isclose(P, hi)] = 0.0
-    P = P + J
-    cells = Delaunay(P).simplices
-    e = P[cells[:, 1:]] - P[cells[:, :1]]
-    flip = np.einsum("ij,ij->i", np.cross(e[:, 0], e[:, 1]), e[:, 2]) < 0
-    cells[flip] = cells[flip][:, [0, 2, 1, 3]]
-    mesh = Mesh3D(P, cells)
-    faces = mesh.boundary_faces()
-    centre = P[faces].mean(axis=1)
-    tol = 1e-9 * float((hi - lo).max())
-    node_sets, face_sets = {"all": np.arange(len(P))}, {}
-    for d, name in enumerate("xyz"):
-        for side, value in (("0", lo[d]), ("1", hi[d])):
-            face_sets[name + side] = faces[np.abs(centre[:, d] - value) <= tol]
-            node_sets[name + side] = np.nonzero(np.abs(P[:, d] - value) <= tol)[0]
-    return Mesh3D(P, cells, node_sets, face_sets)
+def unstructured_block(n_fine: int) -> Mesh3D:
+    return tetrahedral_block(n_fine=n_fine)
 
 
 def _iterations(pb, start: str):

@@ -39,6 +39,7 @@ from .._jax import to_device
 from ..errors import SingularTangentError
 from ..fem.assembly import SparsityPattern
 from ..linsolve import get_solver
+from ..linsolve.iterative import aggregate_once
 from ..linsolve.multigrid import _lambda_max
 
 log = logging.getLogger("signorini")
@@ -83,19 +84,8 @@ def aggregates(G: sp.csr_matrix, X: np.ndarray, passes: int = 2) -> np.ndarray:
 
 
 def _one_pass(G: sp.csr_matrix, X: np.ndarray) -> np.ndarray:
-    """One standard aggregation (pyamg's) on the geometric strength of
-    :func:`signorini.linsolve.iterative.geometric_aggregates`."""
-    from pyamg.aggregation import standard_aggregation  # noqa: PLC0415  (lazy: pyamg)
-
-    Gc = G.tocoo()
-    off = Gc.row != Gc.col
-    r, c = Gc.row[off], Gc.col[off]
-    w = 1.0 / np.maximum(np.einsum("ij,ij->i", X[r] - X[c], X[r] - X[c]), 1e-300)
-    strongest = np.zeros(X.shape[0])
-    np.maximum.at(strongest, r, w)
-    keep = w >= THETA * strongest[r]
-    S = sp.csr_matrix((w[keep], (r[keep], c[keep])), shape=G.shape)
-    agg = standard_aggregation((S + S.T + sp.eye(G.shape[0])).tocsr())[0].tocsr()
+    """(n_nodes,) the aggregate of every node after one aggregation (-1: left alone)."""
+    agg = aggregate_once(G, X, THETA)
     out = np.full(G.shape[0], -1)
     rows = np.repeat(np.arange(agg.shape[0]), np.diff(agg.indptr))
     out[rows] = agg.indices

@@ -255,7 +255,14 @@ def box(xs, ys, zs) -> Mesh3D:
     c = idx[:-1, :-1, :-1]
     corners = [c, c + 1, c + 1 + nx, c + nx]
     cells = np.stack(corners + [k + nx * ny for k in corners], axis=-1).reshape(-1, 8)
-    mesh = Mesh3D(nodes, cells)
+    return with_box_sets(Mesh3D(nodes, cells))
+
+
+def with_box_sets(mesh: Mesh3D) -> Mesh3D:
+    """``mesh`` (of a box-shaped body) with the node and face sets ``x0``, ``x1``,
+    ``y0``, ``y1``, ``z0``, ``z1`` (its boundary faces and nodes on the planes of the
+    smallest and largest x, y, z) and the node set ``all``."""
+    nodes = mesh.nodes
     faces = mesh.boundary_faces()
     centre = nodes[faces].mean(axis=1)
     lo, hi = nodes.min(axis=0), nodes.max(axis=0)
@@ -265,7 +272,7 @@ def box(xs, ys, zs) -> Mesh3D:
         for side, value in (("0", lo[d]), ("1", hi[d])):
             face_sets[name + side] = faces[np.abs(centre[:, d] - value) <= tol]
             node_sets[name + side] = np.nonzero(np.abs(nodes[:, d] - value) <= tol)[0]
-    return Mesh3D(nodes, cells, node_sets, face_sets)
+    return Mesh3D(nodes, mesh.cells, node_sets, face_sets)
 
 
 #: each hexahedron as six tetrahedra around its diagonal 0-6 (VTK order): conforming

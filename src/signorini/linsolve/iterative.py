@@ -103,6 +103,23 @@ def rigid_body_modes(X: np.ndarray) -> np.ndarray:
     return np.column_stack([m.reshape(-1) for m in modes])
 
 
+def aggregate_once(G, X: np.ndarray, theta: float) -> sp.csr_matrix:
+    """(n, n_agg) one aggregation of the nodes X whose neighbours are the nonzeros of
+    G: pyamg's standard aggregation on the geometric strength of
+    :func:`geometric_aggregates` (a node left alone has an empty row)."""
+    from pyamg.aggregation import standard_aggregation  # noqa: PLC0415  (lazy, as below)
+
+    Gc = G.tocoo()
+    off = Gc.row != Gc.col
+    r, c = Gc.row[off], Gc.col[off]
+    w = 1.0 / np.maximum(np.einsum("ij,ij->i", X[r] - X[c], X[r] - X[c]), 1e-300)
+    strongest = np.zeros(X.shape[0])
+    np.maximum.at(strongest, r, w)
+    keep = w >= theta * strongest[r]
+    S = sp.csr_matrix((w[keep], (r[keep], c[keep])), shape=G.shape)
+    return standard_aggregation((S + S.T + sp.eye(G.shape[0])).tocsr())[0].tocsr()
+
+
 def geometric_aggregates(M, X: np.ndarray, theta: float, max_nodes: int) -> list:
     """The aggregates of every level of the hierarchy of ``M`` (BSR, one block per
     node of X), chosen by the geometry of the mesh (docs/theory.md §12.7).
@@ -116,21 +133,11 @@ def geometric_aggregates(M, X: np.ndarray, theta: float, max_nodes: int) -> list
     operators (n_l x n_l+1, sparse), coarsening until at most ``max_nodes`` are left
     or a level no longer coarsens.
     """
-    from pyamg.aggregation import standard_aggregation  # noqa: PLC0415  (lazy, as below)
-
     G = sp.csr_matrix((np.ones(M.indices.size), M.indices, M.indptr),
                       shape=(M.shape[0] // M.blocksize[0],) * 2)
     out: list = []
     while X.shape[0] > max_nodes:
-        Gc = G.tocoo()
-        off = Gc.row != Gc.col
-        r, c = Gc.row[off], Gc.col[off]
-        w = 1.0 / np.maximum(np.einsum("ij,ij->i", X[r] - X[c], X[r] - X[c]), 1e-300)
-        strongest = np.zeros(X.shape[0])
-        np.maximum.at(strongest, r, w)
-        keep = w >= theta * strongest[r]
-        S = sp.csr_matrix((w[keep], (r[keep], c[keep])), shape=G.shape)
-        agg = standard_aggregation((S + S.T + sp.eye(G.shape[0])).tocsr())[0].tocsr()
+        agg = aggregate_once(G, X, theta)
         if agg.shape[1] == 0 or agg.shape[1] > 0.9 * agg.shape[0]:
             break
         out.append(agg)

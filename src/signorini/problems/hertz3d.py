@@ -31,7 +31,7 @@ from ..errors import InputError
 from ..fem.kinematics import Axisymmetric
 from ..fem.loads import Fixed, Pressure
 from ..fem.mesh import graded_coordinates, rectangle
-from ..fem.mesh3d import box
+from ..fem.mesh3d import Mesh3D, box, with_box_sets
 from ..linsolve import check_size
 from ..materials import LinearElastic
 from ..model.problem import Problem
@@ -81,6 +81,35 @@ def grid(nominal: dict | None = None, *, refine: int = 0, n_fine: int = 8, size:
     zs = -graded_coordinates(size * a0, zone * a0 * 2.0 / 3.0, max(int(round(nf * 2 / 3)), 1),
                              growth)[::-1]
     return xs, zs, a0
+
+
+def tetrahedral_block(*, n_fine: int = 8, seed: int = 0, size: float = 12.0,
+                      zone: float = 1.5):
+    """The graded block of :func:`hertz3d_problem` as an unstructured tetrahedral
+    mesh: the points of its grid moved at random (``seed``) by up to a fifth of the
+    local spacing, not across the box's faces, then tetrahedralised by Delaunay;
+    the box's node and face sets (``x0`` ... ``z1``). A mesh without coarser ones,
+    as a user's file would be (tests and benchmarks of the algebraic coarse start)."""
+    from scipy.spatial import Delaunay  # noqa: PLC0415  (lazy: scipy.spatial)
+
+    xs, zs, _ = grid(n_fine=n_fine, size=size, zone=zone)
+    Z, Y, X = np.meshgrid(zs, xs, xs, indexing="ij")
+    P = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    lo, hi = P.min(axis=0), P.max(axis=0)
+
+    def spacing(g, v):
+        i = np.clip(np.searchsorted(g, v), 1, len(g) - 1)
+        return g[i] - g[i - 1]
+
+    h = np.column_stack([spacing(xs, P[:, 0]), spacing(xs, P[:, 1]), spacing(zs, P[:, 2])])
+    J = np.random.default_rng(seed).uniform(-0.2, 0.2, P.shape) * h.min(axis=1)[:, None]
+    J[np.isclose(P, lo) | np.isclose(P, hi)] = 0.0
+    P = P + J
+    cells = Delaunay(P).simplices
+    e = P[cells[:, 1:]] - P[cells[:, :1]]
+    flip = np.einsum("ij,ij->i", np.cross(e[:, 0], e[:, 1]), e[:, 2]) < 0
+    cells[flip] = cells[flip][:, [0, 2, 1, 3]]
+    return with_box_sets(Mesh3D(P, cells))
 
 
 def hertz3d_problem(params: dict | None = None, *, refine: int = 0, n_fine: int = 8,
