@@ -156,3 +156,25 @@ def test_newton_on_a_kept_factor_converges_to_the_same_state(solver):
     assert fb <= 0.6 * fa  # measured: 5 (SuperLU) and 7 (PARDISO) against 15
     assert sum(inc.newton.krylov_iterations for inc in b.increments) > 0
     assert all(r for inc in b.increments for r in inc.newton.refactorizations)
+
+
+def test_a_factor_on_the_kept_one_is_freed_when_dropped(tangents):
+    """No reference cycle: a Newton iteration's factor, its tangent and its Krylov
+    space are freed as soon as Newton drops them, not when the cyclic collector
+    runs (with the cycle, the 89k-DOF run's traced peak was 1,134 MB, not 462)."""
+    import gc
+    import weakref
+
+    K0, K1 = tangents
+    kept = KeptFactor(lambda K, blocks: get_solver("superlu").factorize(K), reuse="always",
+                      budget=200)
+    kept.fresh(K0)
+    fac = kept.factor(K1)
+    fac.solve(np.ones(K1.shape[0]))
+    alive = weakref.ref(fac)
+    gc.disable()
+    try:
+        del fac
+        assert alive() is None
+    finally:
+        gc.enable()
