@@ -167,7 +167,6 @@ class KeptFactor:
         self._spent = 0  # Krylov iterations on the kept factor so far
         self.factorizations = 0
         self.krylov_iterations = 0
-        self.krylov_solves = 0
         self.reasons: list[str] = []
 
     def _reusable(self, fac: Factor | None) -> str:
@@ -233,7 +232,6 @@ class _Solves:
                   "converged" if ok else "stopped", its, rtol, len(self.space.Z))
         own._spent += its
         own.krylov_iterations += its
-        own.krylov_solves += 1
         self.krylov_iterations += its
         return x if ok else None
 
@@ -304,10 +302,6 @@ class _OnKept(Factor):
     def krylov_iterations(self) -> int:
         """Krylov iterations of this factor's solves."""
         return self._solves.krylov_iterations
-
-    def changed_rows(self) -> int:
-        """Rows in which K differs from the kept factor's matrix."""
-        return self._solves.changed_rows()
 
     @property
     def inexact(self) -> bool:
