@@ -110,7 +110,19 @@ def entry() -> None:
         except (OSError, ValueError):  # a closed pipe: nothing more to say
             pass
     logging.shutdown()
+    _finalize_mpi()
     os._exit(code if isinstance(code, int) else 1)
+
+
+def _finalize_mpi() -> None:
+    """End PETSc and MPI where a run (``--solver petsc``) started them: ``os._exit``
+    skips their exit handlers, and MPI's launcher counts a rank that ends without
+    finalising as failed."""
+    petsc, mpi = sys.modules.get("petsc4py.PETSc"), sys.modules.get("mpi4py.MPI")
+    if petsc is not None:
+        petsc._finalize()
+    if mpi is not None and mpi.Is_initialized() and not mpi.Is_finalized():
+        mpi.Finalize()
 
 
 #: seconds a signal may wait for the main thread (inside a library call: a
@@ -259,8 +271,9 @@ def _main(argv) -> int:
     logger.addFilter(flt)
     try:
         from .. import progress  # noqa: PLC0415  (lazy: after the output helper started)
+        from . import ranks  # noqa: PLC0415  (lazy, as above)
 
-        with progress.bars(show), _signals():
+        with ranks.ranks(args) as rank, progress.bars(show and rank == 0), _signals():
             return registry.command(args.command).execute(args)
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM (_signals): keep what converged
         signum = getattr(e, "signum", signal.SIGINT)

@@ -206,10 +206,17 @@ def coarse_start_option(p):
 
 
 def solver_options(p):
-    p.add_argument("--solver", default="auto", choices=["auto", "pardiso", "superlu", "umfpack", "amg"],
+    p.add_argument("--solver", default="auto",
+                   choices=["auto", "pardiso", "superlu", "umfpack", "amg", "petsc", "petsc-amg"],
                    help="linear solver; auto (default) = the fastest direct one installed: pardiso "
                         "(MKL, installed with signorini on x86-64), else superlu (SciPy); amg = "
-                        "GMRES with algebraic multigrid (iterative, for large 3-D problems)")
+                        "GMRES with algebraic multigrid (iterative, for large 3-D problems); petsc "
+                        "= PETSc on the MPI ranks (mpiexec -n N signorini ...; MUMPS unless "
+                        "--petsc-options say otherwise), petsc-amg = amg with PETSc's GAMG cycle "
+                        "on the MPI ranks (an optional install: docs/parallel.md)")
+    p.add_argument("--petsc-options", default="", metavar="OPTIONS",
+                   help="PETSc options for --solver petsc, as one string (e.g. \"-ksp_type gmres "
+                        "-pc_type gamg\")")
     p.add_argument("--force-size", action="store_true",
                    help="run even if the estimated memory exceeds what is available")
     verbosity_options(p)

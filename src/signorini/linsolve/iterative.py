@@ -319,8 +319,6 @@ class AMGKrylov(LinearSolver):
         """One smoothed-aggregation V-cycle on the displacement block of every node
         (prescribed DOFs as identity rows): a function of r_u. ``modes`` maps the
         rigid-body modes (rows: free DOFs) into the frames of As."""
-        import pyamg  # noqa: PLC0415  (lazy: loaded only by runs that use this solver)
-
         st = self.structure
         N = st.dim * len(st.nodes)
         diag = As.diagonal()
@@ -350,17 +348,27 @@ class AMGKrylov(LinearSolver):
         B = rigid_body_modes(st.nodes)
         if modes is not None:
             B[st.u_global] = modes(B[st.u_global])
-        aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
+        cycle = self._cycle(full, B)
         u_full = np.zeros(N)
+
+        def v_cycle(r_u):
+            u_full[:] = 0.0
+            u_full[st.u_global] = r_u
+            return cycle(u_full)[st.u_global]
+        return v_cycle
+
+    def _cycle(self, full, B):
+        """The preconditioner of the nodal displacement block ``full`` (BSR, every
+        node's DOFs) with near-null space ``B``: one V-cycle of smoothed
+        aggregation (its exact solve where no larger than a coarse level), a
+        function of a vector of every node's DOFs."""
+        import pyamg  # noqa: PLC0415  (lazy: loaded only by runs that use this solver)
+
+        st = self.structure
+        aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
         if not aggregates:  # no larger than a coarse level: its exact solve is the preconditioner
             import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
-            lu = spla.splu(full.tocsc())
-
-            def exact(r_u):
-                u_full[:] = 0.0
-                u_full[st.u_global] = r_u
-                return lu.solve(u_full)[st.u_global]
-            return exact
+            return spla.splu(full.tocsc()).solve
         with _fixed_random_start():
             ml = pyamg.smoothed_aggregation_solver(
                 full, B=B, max_coarse=self.MAX_COARSE, coarse_solver="splu",
@@ -370,14 +378,7 @@ class AMGKrylov(LinearSolver):
                 # strength, theta 0.1): sparser coarse levels, a setup half as long
                 strength=("symmetric", {"theta": self.FILTER}),
                 smooth=("jacobi", {"omega": 4.0 / 3.0, "filter_entries": True}))
-        cycle = ChebyshevCycle(ml)
-        del ml
-
-        def v_cycle(r_u):
-            u_full[:] = 0.0
-            u_full[st.u_global] = r_u
-            return cycle(u_full)[st.u_global]
-        return v_cycle
+        return ChebyshevCycle(ml)
 
     def _apply(self, v_cycle, multipliers):
         """P^-1: the V-cycle on the displacements, then the multipliers' Schur solve."""

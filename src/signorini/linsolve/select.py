@@ -16,13 +16,15 @@ from .factor import Factor
 from .iterative import AMGKrylov
 from .kept import KeptFactor
 from .pardiso import Pardiso
+from .petsc import PetscAMG, PetscSolver
 from .superlu import SuperLU
 from .umfpack import Umfpack
 
 log = logging.getLogger("signorini")
 
 
-SOLVERS = {"superlu": SuperLU, "umfpack": Umfpack, "pardiso": Pardiso, "amg": AMGKrylov}
+SOLVERS = {"superlu": SuperLU, "umfpack": Umfpack, "pardiso": Pardiso, "amg": AMGKrylov,
+           "petsc": PetscSolver, "petsc-amg": PetscAMG}
 
 #: the order in which ``auto`` tries the backends (fastest first)
 AUTO_ORDER = ("pardiso", "superlu")
@@ -47,7 +49,7 @@ def available() -> list[str]:
     any matrix; the iterative ``amg`` solves a model's tangents, :func:`for_model`)."""
     out = []
     for name, cls in SOLVERS.items():
-        if hasattr(cls, "bind"):
+        if hasattr(cls, "bind") or cls is PetscSolver:  # (PETSc: one started by mpiexec)
             continue
         try:
             cls()

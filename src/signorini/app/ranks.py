@@ -1,0 +1,56 @@
+"""A command run by every MPI rank (``mpiexec -n N signorini ... --solver petsc``):
+rank 0 prints and writes the outputs; the other ranks compute the same, silently,
+into a private directory removed at the end (docs/parallel.md)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import shutil
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+from ..linsolve import petsc
+
+
+@contextlib.contextmanager
+def ranks(args):
+    """For a command run with ``--solver petsc``: PETSc's options from
+    ``--petsc-options`` and, on ranks other than 0, outputs to a private
+    directory and the log reduced to errors. Any other run: nothing."""
+    if getattr(args, "solver", None) not in ("petsc", "petsc-amg"):
+        yield 0
+        return
+    rank, size = petsc.world()
+    options = getattr(args, "petsc_options", "") or ""
+    if options:
+        petsc.insert_options(options)
+    if rank == 0:
+        if size > 1:
+            logging.getLogger("signorini").info("MPI: %d ranks", size)
+        yield rank
+        return
+    private = None
+    if getattr(args, "out", None) is not None:
+        private = Path(tempfile.mkdtemp(prefix=f"signorini-rank{rank}-"))
+        args.out = str(private)
+    logger = logging.getLogger("signorini")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    # the same lines as rank 0's; an error that ends the run is printed after the streams
+    # are back (every rank prints it)
+    streams = sys.stdout, sys.stderr
+    sys.stdout = sys.stderr = open(os.devnull, "w")  # noqa: SIM115 (closed below)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # rank 0 shows them (and summary.json lists them)
+            yield rank
+    finally:
+        sys.stdout.close()
+        sys.stdout, sys.stderr = streams
+        logger.setLevel(level)
+        if private is not None:
+            shutil.rmtree(private, ignore_errors=True)

@@ -1,0 +1,312 @@
+"""One linear solve over MPI ranks: PETSc's parallel matrices and solvers
+(``solver="petsc"``; docs/parallel.md).
+
+Every rank runs the same program (``mpiexec -n N signorini ...``): the model,
+the assembly and Newton's bookkeeping are the same on every rank, and each
+tangent is handed to PETSc as a parallel matrix whose rows are split among the
+ranks in contiguous blocks (each rank copies its own rows; nothing is sent).
+PETSc's KSP solves it on all the ranks together; the solution is gathered on
+every rank, so that the next step of the program is again the same everywhere.
+
+The default is MUMPS's parallel direct factorisation (LU, or LDL^T for a
+symmetric tangent), which takes any tangent this package assembles (saddle
+points, friction, mortar pairs) and solves it to round-off; the factorisation
+serves every right-hand side of the tangent (Newton's correction, the DDM's
+columns, the adjoint's transposed solve). Any other KSP and preconditioner is
+chosen by PETSc options, given as ``PetscSolver(options="-ksp_type gmres
+-pc_type gamg ...")``, ``--petsc-options`` on the command line (PETSc's global
+options database), or PETSc's own ``PETSC_OPTIONS`` variable; an iterative choice is then checked like the
+``amg`` solver's solves (backward error 1e-10, refined, an error if not
+reached).
+
+The package needs petsc4py and mpi4py, an optional install (docs/parallel.md);
+without them the solver raises :class:`~signorini.errors.InputError` saying so.
+"""
+
+from __future__ import annotations
+
+import logging
+import shlex
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError, SingularTangentError, SolverError
+from .base import LinearSolver
+from .factor import Factor
+from .iterative import AMGKrylov
+
+log = logging.getLogger("signorini")
+
+INSTALL = ("solver 'petsc' needs petsc4py and mpi4py, an optional install: see docs/parallel.md "
+           "(scripts/install-mpi.sh on Debian or Ubuntu)")
+
+
+def petsc_modules():
+    """(PETSc, MPI) from petsc4py and mpi4py, initialised; InputError if absent."""
+    try:
+        import petsc4py  # noqa: F401, PLC0415  (lazy: an optional install)
+        from mpi4py import MPI  # noqa: PLC0415  (lazy, as above)
+    except ImportError:
+        raise InputError(INSTALL) from None
+    from petsc4py import PETSc  # noqa: PLC0415  (lazy, as above; initialises PETSc once)
+    return PETSc, MPI
+
+
+def world() -> tuple[int, int]:
+    """(rank, size) of MPI's world where mpi4py is installed and MPI runs, else (0, 1).
+
+    Imports mpi4py, which starts MPI: called only where a run asked for PETSc."""
+    try:
+        from mpi4py import MPI  # noqa: PLC0415  (lazy: an optional install)
+    except ImportError:
+        return 0, 1
+    comm = MPI.COMM_WORLD
+    return comm.Get_rank(), comm.Get_size()
+
+
+def insert_options(options: str) -> None:
+    """Put PETSc options (a string as on PETSc's command line) into PETSc's global
+    database, which every :class:`PetscSolver` reads (``--petsc-options``)."""
+    PETSc, _ = petsc_modules()
+    opts = PETSc.Options()
+    for key, value in PetscSolver._parse(options):
+        opts[key] = value if value is not None else ""
+
+
+def split_rows(n: int, size: int) -> np.ndarray:
+    """(size + 1,) starts of the ranks' contiguous blocks of n rows, as even as can be."""
+    return (np.arange(size + 1, dtype=np.int64) * n) // size
+
+
+class PetscSolver(LinearSolver):
+    """The tangent solved by PETSc on all the MPI ranks (``solver="petsc"``).
+
+    Args:
+        options: PETSc options for this solver's KSP (e.g. ``"-ksp_type gmres
+            -pc_type gamg -ksp_rtol 1e-12"``), read after the defaults (MUMPS,
+            direct) and after PETSc's global options (``PETSC_OPTIONS``,
+            :func:`insert_options`).
+    """
+
+    name = "petsc"
+    #: the backward error an iterative KSP's solve must reach (the ``amg`` solver's)
+    ITERATIVE_REFINE_TOL = 1e-10
+
+    def __init__(self, options: str = ""):
+        self.PETSc, self.MPI = petsc_modules()
+        if not isinstance(options, str):
+            raise InputError(f"petsc options must be a string of PETSc options, got {options!r}")
+        self.options = options
+        self.comm = self.PETSc.COMM_WORLD
+        self.rank, self.size = self.comm.getRank(), self.comm.getSize()
+        self._pairs = self._parse(options)
+        self.factorizations = 0
+
+    @staticmethod
+    def _parse(options: str) -> list[tuple[str, str | None]]:
+        words = shlex.split(options)
+        pairs: list = []
+        i = 0
+        while i < len(words):
+            w = words[i]
+            if not w.startswith("-") or len(w) < 2:
+                raise InputError(f"petsc options: {w!r} is not an option (options start with '-', "
+                                 f"e.g. '-ksp_type gmres'); got {options!r}")
+            value = None
+            if i + 1 < len(words) and not (words[i + 1].startswith("-")
+                                            and not _is_number(words[i + 1])):
+                value = words[i + 1]
+                i += 1
+            pairs.append((w.lstrip("-"), value))
+            i += 1
+        return pairs
+
+    def describe(self) -> str:
+        return f"petsc ({self.size} rank{'s' if self.size > 1 else ''})"
+
+    # ---------------------------------------------------------------- factor
+    def factorize(self, K, symmetric: bool = False) -> Factor:
+        PETSc = self.PETSc
+        K = sp.csr_matrix(K)
+        n = K.shape[0]
+        starts = split_rows(n, self.size)
+        r0, r1 = int(starts[self.rank]), int(starts[self.rank + 1])
+        A = _local_rows(PETSc, self.comm, K, r0, r1)
+        if symmetric:
+            A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        ksp = PETSc.KSP().create(comm=self.comm)
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("cholesky" if symmetric else "lu")
+        pc.setFactorSolverType("mumps")
+        _set_from_options(PETSc, ksp, self._pairs)
+        direct = ksp.getType() == "preonly"
+        try:
+            ksp.setUp()
+        except PETSc.Error as e:
+            raise SingularTangentError(
+                f"PETSc could not factorise the tangent ({_petsc_message(e)}): a singular tangent "
+                "(a body not held, a multiplier no law determines)") from None
+        self.factorizations += 1
+        x_vec, b_vec = A.createVecs()
+        gather = _gatherer(self.comm, self.MPI, starts)
+
+        def one(bj: np.ndarray, transpose: bool, x0=None) -> np.ndarray:
+            b_vec.setArray(bj[r0:r1])
+            if x0 is not None and not direct:
+                ksp.setInitialGuessNonzero(True)
+                x_vec.setArray(x0[r0:r1])
+            else:
+                ksp.setInitialGuessNonzero(False)
+            (ksp.solveTranspose if transpose else ksp.solve)(b_vec, x_vec)
+            reason = ksp.getConvergedReason()
+            if reason < 0:
+                if direct:
+                    raise SingularTangentError(
+                        f"PETSc's solve of the tangent failed (KSP reason {reason}): a singular "
+                        "tangent") from None
+                raise SolverError(
+                    f"PETSc's iterative solve ({ksp.getType()}, {ksp.getPC().getType()}) did not "
+                    f"converge (KSP reason {reason}, {ksp.getIterationNumber()} iterations): "
+                    "give other options (--petsc-options) or drop them for the direct default")
+            return gather(x_vec)
+
+        def columns(b, transpose=False, x0=None):
+            b = np.asarray(b, dtype=float)
+            if b.ndim == 1:
+                return one(b, transpose, x0)
+            return np.column_stack([one(b[:, j], transpose, None if x0 is None else x0[:, j])
+                                    for j in range(b.shape[1])])
+
+        f = Factor(columns, K, transposable=True,
+                   solve_from=None if direct else (lambda b, x0: columns(b, False, x0)))
+        if not direct:
+            f.refine_tol = self.ITERATIVE_REFINE_TOL
+        f._petsc = (ksp, A, x_vec, b_vec)  # kept alive with the factor
+        return f
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+        return True
+    except ValueError:
+        return False
+
+
+def _petsc_message(e) -> str:
+    return str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+
+
+class PetscAMG(AMGKrylov):
+    """The ``amg`` solver with its multigrid cycle on all the MPI ranks
+    (``solver="petsc-amg"``): flexible GMRES on the tangent, the contact
+    multipliers condensed node by node, as :class:`~signorini.linsolve.AMGKrylov`
+    does, and in place of its V-cycle one V-cycle of PETSc's GAMG on the
+    displacement block split among the ranks by nodes, with the block's rigid-body
+    modes as its near-null space. PETSc options (``-pc_gamg_threshold``,
+    ``-mg_levels_ksp_max_it``, ...) apply to that cycle.
+
+    Args:
+        options: PETSc options for the cycle's KSP and PC (as :class:`PetscSolver`).
+        **kwargs: those of :class:`~signorini.linsolve.AMGKrylov` (``rtol``, ...).
+    """
+
+    name = "petsc-amg"
+
+    def __init__(self, options: str = "", **kwargs):
+        super().__init__(**kwargs)
+        self.PETSc, self.MPI = petsc_modules()
+        if not isinstance(options, str):
+            raise InputError(f"petsc options must be a string of PETSc options, got {options!r}")
+        self.options = options
+        self._pairs = PetscSolver._parse(options)
+        self.comm = self.PETSc.COMM_WORLD
+        self.rank, self.size = self.comm.getRank(), self.comm.getSize()
+        self.cycles = 0
+
+    def describe(self) -> str:
+        return f"petsc-amg ({self.size} rank{'s' if self.size > 1 else ''})"
+
+    def _cycle(self, full, B):
+        PETSc = self.PETSc
+        d = self.structure.dim
+        N = full.shape[0]
+        starts = split_rows(N // d, self.size) * d
+        r0, r1 = int(starts[self.rank]), int(starts[self.rank + 1])
+        A = _local_rows(PETSc, self.comm, sp.csr_matrix(full), r0, r1, block=d)
+        A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        # the near-null space orthonormal, as PETSc asks (the same span)
+        Q, _ = np.linalg.qr(B)
+        vecs = []
+        for j in range(Q.shape[1]):
+            v = A.createVecLeft()
+            v.setArray(Q[r0:r1, j])
+            vecs.append(v)
+        A.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=self.comm))
+        ksp = PETSc.KSP().create(comm=self.comm)
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        ksp.getPC().setType("gamg")
+        _set_from_options(PETSc, ksp, self._pairs)
+        ksp.setUp()
+        x_vec, b_vec = A.createVecs()
+        gather = _gatherer(self.comm, self.MPI, starts)
+
+        def cycle(v):
+            b_vec.setArray(v[r0:r1])
+            ksp.solve(b_vec, x_vec)
+            self.cycles += 1
+            return gather(x_vec)
+        cycle.keep = (ksp, A, vecs, x_vec, b_vec)
+        return cycle
+
+
+def _local_rows(PETSc, comm, K: sp.csr_matrix, r0: int, r1: int, block: int = 1):
+    """The parallel matrix of K (the same on every rank) of which this rank owns rows
+    [r0, r1): its own rows copied, nothing sent."""
+    n = K.shape[0]
+    ip = K.indptr[r0:r1 + 1]
+    indptr = (ip - ip[0]).astype(PETSc.IntType)
+    indices = K.indices[ip[0]:ip[-1]].astype(PETSc.IntType)
+    data = K.data[ip[0]:ip[-1]].astype(PETSc.ScalarType)
+    A = PETSc.Mat().create(comm=comm)
+    A.setType(PETSc.Mat.Type.AIJ)
+    A.setSizes(((r1 - r0, n), (r1 - r0, n)), bsize=block)
+    A.setPreallocationCSR((indptr, indices, data))
+    A.assemble()
+    return A
+
+
+def _set_from_options(PETSc, ksp, pairs) -> None:
+    """``ksp.setFromOptions()`` with ``pairs`` (a solver's own options) in PETSc's
+    global database for the call, the database restored after."""
+    opts = PETSc.Options()
+    before = {key: opts.getString(key) if opts.hasName(key) else None for key, _ in pairs}
+    for key, value in pairs:
+        opts[key] = value if value is not None else ""
+    try:
+        ksp.setFromOptions()
+    finally:
+        for key, value in before.items():
+            if value is None:
+                del opts[key]
+            else:
+                opts[key] = value
+
+
+def _gatherer(comm, MPI, starts: np.ndarray):
+    """Vec -> the whole vector on every rank (its blocks owned as ``starts`` says)."""
+    n = int(starts[-1])
+    counts = np.diff(starts).astype(np.int64)
+    displs = np.asarray(starts[:-1], dtype=np.int64)
+    mpi = comm.tompi4py()
+
+    def gather(v) -> np.ndarray:
+        out = np.empty(n)
+        mpi.Allgatherv(np.ascontiguousarray(v.getArray(readonly=True)),
+                       [out, counts, displs, MPI.DOUBLE])
+        return out
+    return gather

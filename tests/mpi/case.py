@@ -1,0 +1,44 @@
+"""One solve run by every rank under mpiexec (tests/mpi/test_petsc_mpi.py):
+``python case.py CASE SOLVER OUT.npz [RTOL]`` (RTOL: an iterative solver's). Rank 0 saves the converged unknowns of
+every increment, their DDM sensitivities, and the adjoint and DDM gradients of
+the contact work; the other ranks compute the same and save nothing."""
+
+import sys
+
+import numpy as np
+
+import signorini as sg
+from signorini.design.gradient import gradient
+from signorini.linsolve import AMGKrylov
+from signorini.linsolve.petsc import PetscAMG, world
+from signorini.problems.hertz3d import hertz3d_problem
+from signorini.responses import contact_work
+
+CASES = {
+    # (parameters, steps, names)
+    "frictionless": ({}, 1, ["R", "E", "P"]),
+    "friction": ({"mu": 0.3}, 3, ["R", "E", "mu"]),
+}
+
+
+def main(case: str, solver: str, out: str, rtol: str | None = None) -> None:
+    values, steps, names = CASES[case]
+    if rtol is not None:  # an iterative solver's relative residual
+        solver = {"amg": AMGKrylov, "petsc-amg": PetscAMG}[solver](rtol=float(rtol))
+    pb = hertz3d_problem(values, n_fine=4)
+    resp = contact_work()
+    d = gradient(pb, resp, names, method=sg.DDM(), steps=steps, increments="all", solver=solver)
+    sol = d.solution
+    a = gradient(pb, resp, names, method=sg.Adjoint(), steps=steps, increments="all",
+                 solver=solver, solution=sol)
+    rank, size = world()
+    if rank == 0:
+        np.savez(out, w=np.stack([inc.w for inc in sol.increments]),
+                 sens=np.stack([[inc.sens[n] for n in names] for inc in sol.increments]),
+                 ddm=np.array([d[n] for n in names]), adjoint=np.array([a[n] for n in names]),
+                 value=d.value, ranks=size,
+                 newton=np.array([inc.newton.iterations for inc in sol.increments]))
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:5])
