@@ -10,7 +10,7 @@ import numpy as np
 import signorini as sg
 from signorini.design.gradient import gradient
 from signorini.linsolve import AMGKrylov
-from signorini.linsolve.petsc import PetscAMG, world
+from signorini.linsolve.petsc import PetscAMG, PetscSolver, world
 from signorini.problems.hertz3d import hertz3d_problem
 from signorini.responses import contact_work
 
@@ -23,7 +23,11 @@ CASES = {
 
 def main(case: str, solver: str, out: str, rtol: str | None = None) -> None:
     values, steps, names = CASES[case]
-    if rtol is not None:  # an iterative solver's relative residual
+    if solver == "petsc-gamg":  # the amg solver's Krylov method with PETSc's GAMG cycle
+        solver = PetscAMG(hierarchy="gamg", rtol=float(rtol or 1e-11))
+    elif solver.startswith("petsc:"):  # PETSc's own KSP, chosen by options
+        solver = PetscSolver(options=solver.split(":", 1)[1])
+    elif rtol is not None:  # an iterative solver's relative residual
         solver = {"amg": AMGKrylov, "petsc-amg": PetscAMG}[solver](rtol=float(rtol))
     pb = hertz3d_problem(values, n_fine=4)
     resp = contact_work()

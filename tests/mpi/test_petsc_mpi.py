@@ -53,6 +53,10 @@ def case(tmp: Path, name: str, solver: str, ranks: int | None):
     # (1e-11) leaves frictional sensitivities 1.6e-9 (serial amg) and 1.0e-9
     # (petsc-amg, 2 ranks) from the direct solve's, 1e-13 leaves 5e-11 and 4e-11
     tight = ["1e-13"] if solver.endswith("amg") else []
+    return case_cmd(tmp, name, solver, ranks, out, tight)
+
+
+def case_cmd(tmp, name, solver, ranks, out, tight):
     cmd = [sys.executable, str(CASE), name, solver, str(out), *tight]
     run(cmd if ranks is None else launcher(ranks) + cmd)
     return dict(np.load(out))
@@ -73,6 +77,7 @@ def rel(a, b) -> float:
     ("friction", "petsc", 3),
     ("frictionless", "petsc-amg", 3),
     ("friction", "petsc-amg", 2),
+    ("frictionless", "petsc-gamg", 2),
 ])
 def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
     ref = serial[name]
@@ -103,3 +108,17 @@ def test_cli_under_mpiexec_writes_once(tmp_path):
     assert sorted(p.name for p in (tmp_path / "mpi").iterdir()) == \
         sorted(p.name for p in (tmp_path / "serial").iterdir())
     assert b["p0"]["computed"] == pytest.approx(a["p0"]["computed"], rel=1e-10)
+
+
+def test_iterative_petsc_options_that_fail_say_so(tmp_path):
+    """PETSc's own KSP chosen by options (GMRES with point Jacobi, which the
+    multipliers' zero diagonal defeats): an error naming the options' failure,
+    not a traceback from PETSc."""
+    out = tmp_path / "x.npz"
+    cmd = launcher(2) + [sys.executable, str(CASE), "frictionless",
+                         "petsc:-ksp_type gmres -pc_type jacobi -ksp_max_it 20", str(out)]
+    r = subprocess.run(cmd, check=False, capture_output=True, text=True, env=env(), timeout=600)
+    assert r.returncode != 0 and not out.exists()
+    assert "SolverError" in r.stderr or "SingularTangentError" in r.stderr \
+        or "ConvergenceError" in r.stderr, r.stderr[-3000:]
+    assert "petsc4py/PETSc" not in r.stderr  # not raised from inside petsc4py

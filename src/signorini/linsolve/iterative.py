@@ -362,15 +362,23 @@ class AMGKrylov(LinearSolver):
         node's DOFs) with near-null space ``B``: one V-cycle of smoothed
         aggregation (its exact solve where no larger than a coarse level), a
         function of a vector of every node's DOFs."""
+        ml = self._smoothed_aggregation(full, B)
+        if ml is None:  # no larger than a coarse level: its exact solve is the preconditioner
+            import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
+            return spla.splu(full.tocsc()).solve
+        return ChebyshevCycle(ml)
+
+    def _smoothed_aggregation(self, full, B):
+        """pyamg's hierarchy of ``full`` on the geometric aggregates, or None where
+        ``full`` is no larger than a coarse level."""
         import pyamg  # noqa: PLC0415  (lazy: loaded only by runs that use this solver)
 
         st = self.structure
         aggregates = geometric_aggregates(full, st.nodes, self.theta, self.MAX_COARSE // st.dim)
-        if not aggregates:  # no larger than a coarse level: its exact solve is the preconditioner
-            import scipy.sparse.linalg as spla  # noqa: PLC0415  (lazy, as above)
-            return spla.splu(full.tocsc()).solve
+        if not aggregates:
+            return None
         with _fixed_random_start():
-            ml = pyamg.smoothed_aggregation_solver(
+            return pyamg.smoothed_aggregation_solver(
                 full, B=B, max_coarse=self.MAX_COARSE, coarse_solver="splu",
                 aggregate=[("predefined", {"AggOp": a}) for a in aggregates],
                 max_levels=len(aggregates) + 1, improve_candidates=None,
@@ -378,7 +386,6 @@ class AMGKrylov(LinearSolver):
                 # strength, theta 0.1): sparser coarse levels, a setup half as long
                 strength=("symmetric", {"theta": self.FILTER}),
                 smooth=("jacobi", {"omega": 4.0 / 3.0, "filter_entries": True}))
-        return ChebyshevCycle(ml)
 
     def _apply(self, v_cycle, multipliers):
         """P^-1: the V-cycle on the displacements, then the multipliers' Schur solve."""
@@ -531,8 +538,14 @@ class AMGKrylov(LinearSolver):
         K_, K = K, RowSplit(K)
         M = spla.LinearOperator(K.shape, matvec=apply, dtype=float)
         res: list = []
-        x, info = fgmres(K, b, x0=x0, tol=rtol, restart=self.restart,
-                         maxiter=max(1, budget // self.restart), M=M, residuals=res)
+        try:
+            x, info = fgmres(K, b, x0=x0, tol=rtol, restart=self.restart,
+                             maxiter=max(1, budget // self.restart), M=M, residuals=res)
+        except ValueError as e:  # SciPy's check of GMRES's Hessenberg matrix: NaN or inf
+            raise SolverError(
+                f"the iterative solver's preconditioner returned non-finite values ({e}): the "
+                "multigrid hierarchy failed on this tangent; use a direct solver (solver='pardiso' "
+                "or 'superlu') or, with petsc-amg, other --petsc-options") from None
         its = len(res) - 1
         if info != 0:
             r = b - K @ x

@@ -35,6 +35,7 @@ from ..errors import InputError, SingularTangentError, SolverError
 from .base import LinearSolver
 from .factor import Factor
 from .iterative import AMGKrylov
+from .multigrid import COARSE_DEGREE, DEGREE, RATIO
 
 log = logging.getLogger("signorini")
 
@@ -160,7 +161,13 @@ class PetscSolver(LinearSolver):
                 x_vec.setArray(x0[r0:r1])
             else:
                 ksp.setInitialGuessNonzero(False)
-            (ksp.solveTranspose if transpose else ksp.solve)(b_vec, x_vec)
+            try:
+                (ksp.solveTranspose if transpose else ksp.solve)(b_vec, x_vec)
+            except PETSc.Error as e:
+                raise SolverError(
+                    f"PETSc's solve of the tangent failed ({_petsc_message(e)}) with "
+                    f"{ksp.getType()}/{ksp.getPC().getType()}: give other options "
+                    "(--petsc-options) or drop them for the direct default (MUMPS)") from None
             reason = ksp.getConvergedReason()
             if reason < 0:
                 if direct:
@@ -204,80 +211,177 @@ class PetscAMG(AMGKrylov):
     """The ``amg`` solver with its multigrid cycle on all the MPI ranks
     (``solver="petsc-amg"``): flexible GMRES on the tangent, the contact
     multipliers condensed node by node, as :class:`~signorini.linsolve.AMGKrylov`
-    does, and in place of its V-cycle one V-cycle of PETSc's GAMG on the
-    displacement block split among the ranks by nodes, with the block's rigid-body
-    modes as its near-null space. PETSc options (``-pc_gamg_threshold``,
-    ``-mg_levels_ksp_max_it``, ...) apply to that cycle.
+    does, and in place of its V-cycle one V-cycle of PETSc's multigrid (PCMG) on
+    the displacement block, every level's rows split among the ranks.
+
+    ``hierarchy="own"`` (the default) hands PCMG the ``amg`` solver's own
+    hierarchy (smoothed aggregation on aggregates that follow the cells'
+    stretching, rigid-body modes as near-null space): its levels and
+    prolongators, smoothed by Chebyshev on the nodal diagonal blocks (degree 3 on
+    the finest level, 2 below, the ``amg`` solver's), so that the cycle is the
+    ``amg`` solver's own and needs as many Krylov iterations. ``"gamg"``: PETSc's
+    GAMG builds the hierarchy itself, in parallel, from the matrix and the
+    rigid-body modes (2.3-3.6x the Krylov iterations on the graded 3-D Hertz
+    mesh, docs/parallel.md). PETSc options (``-mg_levels_ksp_max_it``,
+    ``-pc_gamg_threshold``, ...) apply to the cycle.
 
     Args:
         options: PETSc options for the cycle's KSP and PC (as :class:`PetscSolver`).
+        hierarchy: ``"own"`` or ``"gamg"``.
         **kwargs: those of :class:`~signorini.linsolve.AMGKrylov` (``rtol``, ...).
     """
 
     name = "petsc-amg"
+    HIERARCHIES = ("own", "gamg")
 
-    def __init__(self, options: str = "", **kwargs):
+    def __init__(self, options: str = "", hierarchy: str = "own", **kwargs):
         super().__init__(**kwargs)
         self.PETSc, self.MPI = petsc_modules()
         if not isinstance(options, str):
             raise InputError(f"petsc options must be a string of PETSc options, got {options!r}")
-        self.options = options
+        if hierarchy not in self.HIERARCHIES:
+            raise InputError(f"petsc-amg: hierarchy must be one of {self.HIERARCHIES}, got "
+                             f"{hierarchy!r}")
+        self.options, self.hierarchy = options, hierarchy
         self._pairs = PetscSolver._parse(options)
         self.comm = self.PETSc.COMM_WORLD
         self.rank, self.size = self.comm.getRank(), self.comm.getSize()
         self.cycles = 0
 
     def describe(self) -> str:
-        return f"petsc-amg ({self.size} rank{'s' if self.size > 1 else ''})"
+        return f"petsc-amg ({self.size} rank{'s' if self.size > 1 else ''}, {self.hierarchy})"
 
     def _cycle(self, full, B):
         PETSc = self.PETSc
         d = self.structure.dim
-        N = full.shape[0]
-        starts = split_rows(N // d, self.size) * d
-        r0, r1 = int(starts[self.rank]), int(starts[self.rank + 1])
-        A = _local_rows(PETSc, self.comm, sp.csr_matrix(full), r0, r1, block=d)
-        A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        # the near-null space orthonormal, as PETSc asks (the same span)
-        Q, _ = np.linalg.qr(B)
-        vecs = []
-        for j in range(Q.shape[1]):
-            v = A.createVecLeft()
-            v.setArray(Q[r0:r1, j])
-            vecs.append(v)
-        A.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=self.comm))
         ksp = PETSc.KSP().create(comm=self.comm)
-        ksp.setOperators(A)
         ksp.setType("preonly")
-        ksp.getPC().setType("gamg")
-        _set_from_options(PETSc, ksp, self._pairs)
+        pc = ksp.getPC()
+        keep: list = []
+        if self.hierarchy == "gamg":
+            A, starts = self._distributed(full, d)
+            ksp.setOperators(A)
+            # the near-null space orthonormal, as PETSc asks (the same span)
+            Q, _ = np.linalg.qr(B)
+            r0, r1 = int(starts[self.rank]), int(starts[self.rank + 1])
+            vecs = []
+            for j in range(Q.shape[1]):
+                v = A.createVecLeft()
+                v.setArray(Q[r0:r1, j])
+                vecs.append(v)
+            A.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=self.comm))
+            pc.setType("gamg")
+            keep += [A, vecs]
+        else:
+            ml = self._smoothed_aggregation(full, B)
+            if ml is None:  # no larger than a coarse level: solved exactly (every rank)
+                return super()._cycle(full, B)
+            A, starts = self._levels(pc, ml, B.shape[1], keep)
+            ksp.setOperators(A)
+            del ml
+        # the amg solver's smoothed part of the spectrum, [lambda_max / RATIO, 1.1 lambda_max]
+        own = [("mg_levels_ksp_chebyshev_esteig", f"0,{1 / RATIO:.6g},0,1.1")] \
+            if self.hierarchy == "own" else []
+        _set_from_options(PETSc, ksp, own + self._pairs)
         ksp.setUp()
         x_vec, b_vec = A.createVecs()
+        r0, r1 = int(starts[self.rank]), int(starts[self.rank + 1])
         gather = _gatherer(self.comm, self.MPI, starts)
 
         def cycle(v):
             b_vec.setArray(v[r0:r1])
             ksp.solve(b_vec, x_vec)
             self.cycles += 1
-            return gather(x_vec)
-        cycle.keep = (ksp, A, vecs, x_vec, b_vec)
+            x = gather(x_vec)
+            if not np.all(np.isfinite(x)):
+                raise SolverError(
+                    "PETSc's multigrid cycle returned non-finite values: its options "
+                    f"({self.options or 'the defaults'}) do not suit this tangent; drop or change "
+                    "--petsc-options, or use solver 'petsc' (MUMPS, direct)")
+            return x
+        cycle.keep = (ksp, x_vec, b_vec, keep)
         return cycle
 
+    def _distributed(self, M, block: int, cols=None):
+        """(M as a parallel matrix, its row starts): rows split in whole blocks of
+        ``block``; ``cols`` the column starts (default: as the rows)."""
+        starts = split_rows(M.shape[0] // block, self.size) * block
+        r0, r1 = int(starts[self.rank]), int(starts[self.rank + 1])
+        c = starts if cols is None else cols
+        A = _local_rows(self.PETSc, self.comm, sp.csr_matrix(M), r0, r1,
+                        block=block if cols is None else 1,
+                        cols=int(c[self.rank + 1] - c[self.rank]))
+        return A, starts
 
-def _local_rows(PETSc, comm, K: sp.csr_matrix, r0: int, r1: int, block: int = 1):
+    def _levels(self, pc, ml, modes: int, keep: list):
+        """PCMG set up with pyamg's hierarchy ``ml``: every level's operator and
+        prolongator split among the ranks, Chebyshev smoothing on the nodal
+        blocks (the ``amg`` solver's degrees), the coarsest level solved
+        directly. Returns the finest operator and its row starts."""
+        PETSc = self.PETSc
+        levels = ml.levels
+        L = len(levels)
+        pc.setType("mg")
+        pc.setMGLevels(L)
+        pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
+        pc.setMGCycleType(PETSc.PC.MGCycleType.V)
+        ops = []
+        for i, lv in enumerate(levels):  # pyamg's level 0 is the finest, PETSc's the coarsest
+            block = self.structure.dim if i == 0 else modes
+            A, starts = self._distributed(_with_unit_empty_rows(lv.A), block)
+            ops.append((A, starts))
+        for i, lv in enumerate(levels):
+            A, _ = ops[i]
+            level = L - 1 - i
+            if i < L - 1:
+                P, _ = self._distributed(lv.P, self.structure.dim if i == 0 else modes,
+                                         cols=ops[i + 1][1])
+                pc.setMGInterpolation(level, P)
+                keep.append(P)
+                smoother = pc.getMGSmoother(level)
+                smoother.setType("chebyshev")
+                smoother.setTolerances(max_it=DEGREE if i == 0 else COARSE_DEGREE)
+                smoother.getPC().setType("pbjacobi")
+            else:
+                smoother = pc.getMGCoarseSolve()
+                smoother.setType("preonly")
+                smoother.getPC().setType("redundant" if self.size > 1 else "lu")
+            smoother.setOperators(A)
+            keep.append(A)
+        return ops[0]
+
+def _local_rows(PETSc, comm, K: sp.csr_matrix, r0: int, r1: int, block: int = 1,
+                cols: int | None = None):
     """The parallel matrix of K (the same on every rank) of which this rank owns rows
-    [r0, r1): its own rows copied, nothing sent."""
-    n = K.shape[0]
+    [r0, r1) (and ``cols`` columns of a rectangular K; default r1 - r0): its own rows
+    copied, nothing sent."""
+    n, m = K.shape
     ip = K.indptr[r0:r1 + 1]
     indptr = (ip - ip[0]).astype(PETSc.IntType)
     indices = K.indices[ip[0]:ip[-1]].astype(PETSc.IntType)
     data = K.data[ip[0]:ip[-1]].astype(PETSc.ScalarType)
     A = PETSc.Mat().create(comm=comm)
     A.setType(PETSc.Mat.Type.AIJ)
-    A.setSizes(((r1 - r0, n), (r1 - r0, n)), bsize=block)
+    A.setSizes(((r1 - r0, n), (r1 - r0 if cols is None else cols, m)), bsize=block)
     A.setPreallocationCSR((indptr, indices, data))
     A.assemble()
     return A
+
+
+def _with_unit_empty_rows(A) -> sp.csr_matrix:
+    """A with a unit diagonal in its empty rows: a coarse level's unknowns of a
+    rigid-body mode an aggregate too small cannot carry (a zero column of the
+    prolongator, so an empty row and column), decoupled so that the nodal-block
+    Jacobi and the coarse LU see invertible blocks; the cycle is unchanged (the
+    restriction gives them zero, the prolongation ignores them)."""
+    A = sp.csr_matrix(A)
+    empty = np.diff(A.indptr) == 0
+    if A.nnz:
+        filled = ~empty
+        empty[filled] = np.maximum.reduceat(np.abs(A.data), A.indptr[:-1][filled]) == 0
+    if not empty.any():
+        return A
+    return (A + sp.diags(empty.astype(float))).tocsr()
 
 
 def _set_from_options(PETSc, ksp, pairs) -> None:
