@@ -89,6 +89,9 @@ def solver_entries(solver, solution) -> dict:
     its = getattr(solver, "iterations", None)  # an iterative solver's, solve by solve
     if its is not None:
         out["krylov_iterations"] = [int(k) for k in its]
+    mpi = getattr(solver, "mpi_report", None)  # the PETSc solvers: ranks, parallel work
+    if callable(mpi):
+        out["mpi"] = mpi()
     return out
 
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import shlex
+import time
 
 import numpy as np
 import scipy.sparse as sp
@@ -103,6 +104,8 @@ class PetscSolver(LinearSolver):
         self.rank, self.size = self.comm.getRank(), self.comm.getSize()
         self._pairs = self._parse(options)
         self.factorizations = 0
+        self.factorize_s = 0.0  # PETSc's factorisations (all ranks together)
+        self.solve_s = 0.0      # its solves, the gathering of their solutions included
 
     @staticmethod
     def _parse(options: str) -> list[tuple[str, str | None]]:
@@ -126,6 +129,12 @@ class PetscSolver(LinearSolver):
     def describe(self) -> str:
         return f"petsc ({self.size} rank{'s' if self.size > 1 else ''})"
 
+    def mpi_report(self) -> dict:
+        """What ``summary.json`` says of the parallel part (``mpi``)."""
+        return {"ranks": self.size, "factorizations": self.factorizations,
+                "parallel_factorize_s": round(self.factorize_s, 3),
+                "parallel_solve_s": round(self.solve_s, 3)}
+
     # ---------------------------------------------------------------- factor
     def factorize(self, K, symmetric: bool = False) -> Factor:
         PETSc = self.PETSc
@@ -144,6 +153,7 @@ class PetscSolver(LinearSolver):
         pc.setFactorSolverType("mumps")
         _set_from_options(PETSc, ksp, self._pairs)
         direct = ksp.getType() == "preonly"
+        t0 = time.perf_counter()
         try:
             ksp.setUp()
         except PETSc.Error as e:
@@ -151,10 +161,18 @@ class PetscSolver(LinearSolver):
                 f"PETSc could not factorise the tangent ({_petsc_message(e)}): a singular tangent "
                 "(a body not held, a multiplier no law determines)") from None
         self.factorizations += 1
+        self.factorize_s += time.perf_counter() - t0
         x_vec, b_vec = A.createVecs()
         gather = _gatherer(self.comm, self.MPI, starts)
 
         def one(bj: np.ndarray, transpose: bool, x0=None) -> np.ndarray:
+            t0 = time.perf_counter()
+            try:
+                return _one(bj, transpose, x0)
+            finally:
+                self.solve_s += time.perf_counter() - t0
+
+        def _one(bj: np.ndarray, transpose: bool, x0=None) -> np.ndarray:
             b_vec.setArray(bj[r0:r1])
             if x0 is not None and not direct:
                 ksp.setInitialGuessNonzero(True)
@@ -247,11 +265,28 @@ class PetscAMG(AMGKrylov):
         self.comm = self.PETSc.COMM_WORLD
         self.rank, self.size = self.comm.getRank(), self.comm.getSize()
         self.cycles = 0
+        self.cycle_s = 0.0      # in PETSc's cycles, their gathering included
+        self.setup_s = 0.0      # the hierarchies: pyamg's (every rank) and PETSc's set-up
 
     def describe(self) -> str:
         return f"petsc-amg ({self.size} rank{'s' if self.size > 1 else ''}, {self.hierarchy})"
 
+    def mpi_report(self) -> dict:
+        """What ``summary.json`` says of the parallel part (``mpi``): the cycles run on
+        all the ranks; the rest of a solve (GMRES, the condensation, the products with
+        the tangent) and the hierarchy's pyamg part run on every rank alike."""
+        return {"ranks": self.size, "hierarchy": self.hierarchy, "cycles": self.cycles,
+                "parallel_cycle_s": round(self.cycle_s, 3),
+                "hierarchy_setup_s": round(self.setup_s, 3)}
+
     def _cycle(self, full, B):
+        t0 = time.perf_counter()
+        try:
+            return self._petsc_cycle(full, B)
+        finally:
+            self.setup_s += time.perf_counter() - t0
+
+    def _petsc_cycle(self, full, B):
         PETSc = self.PETSc
         d = self.structure.dim
         ksp = PETSc.KSP().create(comm=self.comm)
@@ -289,10 +324,12 @@ class PetscAMG(AMGKrylov):
         gather = _gatherer(self.comm, self.MPI, starts)
 
         def cycle(v):
+            t0 = time.perf_counter()
             b_vec.setArray(v[r0:r1])
             ksp.solve(b_vec, x_vec)
             self.cycles += 1
             x = gather(x_vec)
+            self.cycle_s += time.perf_counter() - t0
             if not np.all(np.isfinite(x)):
                 raise SolverError(
                     "PETSc's multigrid cycle returned non-finite values: its options "
