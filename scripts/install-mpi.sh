@@ -7,9 +7,11 @@ PY=${PYTHON:-python3}
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
 export DEBIAN_FRONTEND=noninteractive
-if ! dpkg -s libpetsc-real-dev >/dev/null 2>&1; then
+# OpenBLAS: Debian's alternatives then give it to MUMPS in place of the reference BLAS
+# (MUMPS's dense kernels; measured 4x faster on a 37k-DOF 3-D tangent)
+if ! dpkg -s libpetsc-real-dev libopenblas0-pthread >/dev/null 2>&1; then
     $SUDO apt-get update -qq || true
-    $SUDO apt-get install -y -qq --no-install-recommends libpetsc-real-dev >/dev/null
+    $SUDO apt-get install -y -qq --no-install-recommends libpetsc-real-dev libopenblas0-pthread >/dev/null
 fi
 PETSC_DIR=/usr/lib/petsc
 version=$(awk '/define PETSC_VERSION_(MAJOR|MINOR|SUBMINOR) /{v=v (v ? "." : "") $3} END {print v}' \

@@ -25,6 +25,7 @@ without them the solver raises :class:`~signorini.errors.InputError` saying so.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import shlex
 import time
@@ -151,11 +152,12 @@ class PetscSolver(LinearSolver):
         pc = ksp.getPC()
         pc.setType("cholesky" if symmetric else "lu")
         pc.setFactorSolverType("mumps")
-        _set_from_options(PETSc, ksp, self._pairs)
-        direct = ksp.getType() == "preonly"
         t0 = time.perf_counter()
         try:
-            ksp.setUp()
+            with _options(PETSc, self._pairs):
+                ksp.setFromOptions()
+                direct = ksp.getType() == "preonly"
+                ksp.setUp()
         except PETSc.Error as e:
             raise SingularTangentError(
                 f"PETSc could not factorise the tangent ({_petsc_message(e)}): a singular tangent "
@@ -207,10 +209,26 @@ class PetscSolver(LinearSolver):
 
         f = Factor(columns, K, transposable=True,
                    solve_from=None if direct else (lambda b, x0: columns(b, False, x0)))
+        if direct:  # MUMPS's figures: a kept factorisation's worth (linsolve.kept.budget_of)
+            f.flops, f.nbytes = _mumps_figures(ksp)
         if not direct:
             f.refine_tol = self.ITERATIVE_REFINE_TOL
         f._petsc = (ksp, A, x_vec, b_vec)  # kept alive with the factor
         return f
+
+
+def _mumps_figures(ksp) -> tuple[float | None, int | None]:
+    """(operations of the elimination, bytes of the factors) that MUMPS reports
+    (RINFOG(3); INFOG(9) entries, in millions where negative), or Nones for
+    another factorisation."""
+    try:
+        F = ksp.getPC().getFactorMatrix()
+        flops = float(F.getMumpsRinfog(3))
+        entries = int(F.getMumpsInfog(9))
+    except Exception:  # noqa: BLE001 - not MUMPS (options chose another): no figures
+        return None, None
+    entries = -entries * 1_000_000 if entries < 0 else entries
+    return (flops if flops > 0 else None), (8 * entries if entries > 0 else None)
 
 
 def _is_number(word: str) -> bool:
@@ -317,8 +335,9 @@ class PetscAMG(AMGKrylov):
         # the amg solver's smoothed part of the spectrum, [lambda_max / RATIO, 1.1 lambda_max]
         own = [("mg_levels_ksp_chebyshev_esteig", f"0,{1 / RATIO:.6g},0,1.1")] \
             if self.hierarchy == "own" else []
-        _set_from_options(PETSc, ksp, own + self._pairs)
-        ksp.setUp()
+        with _options(PETSc, own + self._pairs):
+            ksp.setFromOptions()
+            ksp.setUp()
         x_vec, b_vec = A.createVecs()
         r0, r1 = int(starts[self.rank]), int(starts[self.rank + 1])
         gather = _gatherer(self.comm, self.MPI, starts)
@@ -421,15 +440,17 @@ def _with_unit_empty_rows(A) -> sp.csr_matrix:
     return (A + sp.diags(empty.astype(float))).tocsr()
 
 
-def _set_from_options(PETSc, ksp, pairs) -> None:
-    """``ksp.setFromOptions()`` with ``pairs`` (a solver's own options) in PETSc's
-    global database for the call, the database restored after."""
+@contextlib.contextmanager
+def _options(PETSc, pairs):
+    """``pairs`` (a solver's own options) in PETSc's global database while a KSP
+    reads them (its ``setFromOptions`` and its ``setUp``, where MUMPS reads its
+    own), the database restored after."""
     opts = PETSc.Options()
     before = {key: opts.getString(key) if opts.hasName(key) else None for key, _ in pairs}
     for key, value in pairs:
         opts[key] = value if value is not None else ""
     try:
-        ksp.setFromOptions()
+        yield
     finally:
         for key, value in before.items():
             if value is None:
