@@ -11,30 +11,37 @@ import signorini as sg
 from signorini.design.gradient import gradient
 from signorini.linsolve import AMGKrylov
 from signorini.linsolve.petsc import PetscAMG, PetscSolver, world
+from signorini.problems import forging3d as f3
 from signorini.problems.hertz3d import hertz3d_problem
 from signorini.responses import contact_work
 
 CASES = {
-    # (parameters, steps, names)
-    "frictionless": ({}, 1, ["R", "E", "P"]),
-    "friction": ({"mu": 0.3}, 3, ["R", "E", "mu"]),
+    # (problem, steps, names, response, Newton options)
+    "frictionless": (lambda: hertz3d_problem({}, n_fine=4), 1, ["R", "E", "P"], None, None),
+    "friction": (lambda: hertz3d_problem({"mu": 0.3}, n_fine=4), 3, ["R", "E", "mu"], None, None),
+    # J2 plasticity with friction, path-dependent in both
+    "forging3d": (lambda: f3.forging3d_problem(mesh=(3, 3)), 6, ["square", "bulge", "mu", "sigma_y"],
+                  lambda pb: (lambda m: f3.out_of_round(m, pb.mesh.node_set("lateral"))),
+                  f3.options()),
 }
 
 
 def main(case: str, solver: str, out: str, rtol: str | None = None) -> None:
-    values, steps, names = CASES[case]
+    build, steps, names, response, options = CASES[case]
     if solver == "petsc-gamg":  # the amg solver's Krylov method with PETSc's GAMG cycle
         solver = PetscAMG(hierarchy="gamg", rtol=float(rtol or 1e-11))
     elif solver.startswith("petsc:"):  # PETSc's own KSP, chosen by options
         solver = PetscSolver(options=solver.split(":", 1)[1])
     elif rtol is not None:  # an iterative solver's relative residual
         solver = {"amg": AMGKrylov, "petsc-amg": PetscAMG}[solver](rtol=float(rtol))
-    pb = hertz3d_problem(values, n_fine=4)
-    resp = contact_work()
-    d = gradient(pb, resp, names, method=sg.DDM(), steps=steps, increments="all", solver=solver)
+    pb = build()
+    resp = contact_work() if response is None else response(pb)
+    kw = dict(steps=steps, increments="all", solver=solver)
+    if options is not None:
+        kw["options"] = options
+    d = gradient(pb, resp, names, method=sg.DDM(), **kw)
     sol = d.solution
-    a = gradient(pb, resp, names, method=sg.Adjoint(), steps=steps, increments="all",
-                 solver=solver, solution=sol)
+    a = gradient(pb, resp, names, method=sg.Adjoint(), solution=sol, **kw)
     rank, size = world()
     if rank == 0:
         np.savez(out, w=np.stack([inc.w for inc in sol.increments]),

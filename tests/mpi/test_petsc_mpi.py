@@ -1,7 +1,8 @@
 """One solve over MPI ranks on PETSc (solver="petsc": MUMPS; "petsc-amg": the amg
 solver with GAMG's cycle): the converged unknowns, the DDM sensitivities and the
 adjoint gradient equal the serial run's, for a frictionless and a frictional
-(path-dependent) 3-D Hertz problem, on 2 and 3 ranks (oversubscribed on a
+(path-dependent) 3-D Hertz problem and the 3-D forging (J2 plasticity with
+friction), on 2 and 3 ranks (oversubscribed on a
 2-core machine). Skipped where the optional MPI install is absent."""
 
 import importlib.util
@@ -65,7 +66,8 @@ def case_cmd(tmp, name, solver, ranks, out, tight):
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("serial")
-    return {name: case(tmp, name, "superlu", None) for name in ("frictionless", "friction")}
+    return {name: case(tmp, name, "superlu", None) for name in ("frictionless", "friction",
+                                                                 "forging3d")}
 
 
 def rel(a, b) -> float:
@@ -78,6 +80,8 @@ def rel(a, b) -> float:
     ("frictionless", "petsc-amg", 3),
     ("friction", "petsc-amg", 2),
     ("frictionless", "petsc-gamg", 2),
+    ("forging3d", "petsc", 2),
+    ("forging3d", "petsc-amg", 3),
 ])
 def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
     ref = serial[name]

@@ -114,10 +114,17 @@ def entry() -> None:
     os._exit(code if isinstance(code, int) else 1)
 
 
+#: the solvers run under mpiexec (:mod:`signorini.app.ranks`)
+MPI_SOLVERS = ("petsc", "petsc-amg")
+
+
 def _finalize_mpi() -> None:
     """End PETSc and MPI where a run (``--solver petsc``) started them: ``os._exit``
     skips their exit handlers, and MPI's launcher counts a rank that ends without
-    finalising as failed."""
+    finalising as failed. A rank's private output directory is removed first."""
+    ranks = sys.modules.get("signorini.app.ranks")
+    if ranks is not None:
+        ranks.remove_private()
     petsc, mpi = sys.modules.get("petsc4py.PETSc"), sys.modules.get("mpi4py.MPI")
     if petsc is not None:
         petsc._finalize()
@@ -129,10 +136,14 @@ def _finalize_mpi() -> None:
 #: factorisation, a compilation, a large allocation) before the watchdog reports
 #: the interrupt itself and ends the process; and the seconds that report may take
 GRACE_S, REPORT_S = 3.0, 20.0
+#: seconds the interrupt, once its handler has run, may take to leave the command: an
+#: exception raised where Python ignores it (a finaliser, a callback from a library)
+#: is lost, and the run would go on; the watchdog then reports and ends the process
+UNWIND_S = 10.0
 
 
 @contextlib.contextmanager
-def _signals(final: int | None = None):
+def _signals(final: int | None = None, interrupt: bool = True):
     """SIGTERM raises :class:`~signorini.errors.Interrupted` and SIGINT
     ``Interrupted(2)``, a ``KeyboardInterrupt`` (so a batch scheduler's stop keeps
     the run's work too); with ``final``, while the report of an interrupt is
@@ -145,9 +156,12 @@ def _signals(final: int | None = None):
     compilation) would wait for its end. A watchdog thread is woken at once
     (``signal.set_wakeup_fd``); if the handler has not run within
     :data:`GRACE_S` seconds, the watchdog writes the interrupt report (what has
-    converged is kept) and ends the process with 128 + the signal's number. A
-    library call that holds the interpreter's lock throughout stops the watchdog
-    too; none of those the solver spends its time in does."""
+    converged is kept) and ends the process with 128 + the signal's number; so it
+    does if the interrupt has not left the command :data:`UNWIND_S` seconds after
+    its handler ran (measured: one SIGTERM in about ten, during the compilation of
+    a sensitivity program, raised where Python ignores an exception, and the run
+    went on). A library call that holds the interpreter's lock throughout stops the
+    watchdog too; none of those the solver spends its time in does."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -169,7 +183,8 @@ def _signals(final: int | None = None):
         handled.set()
         raise Interrupted(signum)
 
-    before = {s: signal.signal(s, stop) for s in (signal.SIGTERM, signal.SIGINT)}
+    caught = (signal.SIGTERM, signal.SIGINT) if interrupt else (signal.SIGTERM,)
+    before = {s: signal.signal(s, stop) for s in caught}
     watch = _Watchdog(handled)
     try:
         yield
@@ -211,7 +226,10 @@ class _Watchdog:
             if signum not in (signal.SIGINT, signal.SIGTERM):
                 continue
             if self.handled.wait(GRACE_S) or self.closed.is_set():
-                return  # the main thread took it: it writes the report
+                # the main thread took it: it writes the report once the interrupt has
+                # left the command (the signals' block closed), unless it was lost
+                if self.closed.wait(UNWIND_S):
+                    return
             self._end(signum)
 
     def _end(self, signum: int) -> None:
@@ -233,6 +251,9 @@ class _Watchdog:
             print(f"\nsignorini: {text} (the signal came inside a library call, which was "
                   "abandoned)", file=sys.stderr, flush=True)
         finally:
+            ranks = sys.modules.get("signorini.app.ranks")
+            if ranks is not None:
+                ranks.remove_private()
             os._exit(128 + signum)
 
     def close(self):
@@ -270,10 +291,25 @@ def _main(argv) -> int:
     logger = logging.getLogger("signorini")
     logger.addFilter(flt)
     try:
-        from .. import progress  # noqa: PLC0415  (lazy: after the output helper started)
-        from . import ranks  # noqa: PLC0415  (lazy, as above)
+        if getattr(args, "solver", None) in MPI_SOLVERS:
+            # under mpiexec, every rank but 0 silent, its outputs in a private directory
+            # kept until its interrupt or error report is written
+            from . import ranks  # noqa: PLC0415  (lazy: the library, after the output helper started)
 
-        with ranks.ranks(args) as rank, progress.bars(show and rank == 0), _signals():
+            with ranks.ranks(args) as rank:
+                return _run(args, show and rank == 0, interrupt=rank == 0)
+        return _run(args, show)
+    finally:
+        logger.removeFilter(flt)
+
+
+def _run(args, show: bool, interrupt: bool = True) -> int:
+    """The command, its errors and interrupts reported (:func:`_main`); without
+    ``interrupt`` (a rank other than 0) SIGINT is left ignored: rank 0 reports it."""
+    try:
+        from .. import progress  # noqa: PLC0415  (lazy: after the output helper started)
+
+        with progress.bars(show), _signals(interrupt=interrupt):
             return registry.command(args.command).execute(args)
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM (_signals): keep what converged
         signum = getattr(e, "signum", signal.SIGINT)
@@ -291,9 +327,6 @@ def _main(argv) -> int:
     except SignoriniError as e:
         print(f"signorini: error: {e}", file=sys.stderr)
         return 2
-    finally:
-        logger.removeFilter(flt)
-
 
 
 if __name__ == "__main__":

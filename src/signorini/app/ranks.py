@@ -8,12 +8,25 @@ import contextlib
 import logging
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import warnings
 from pathlib import Path
 
 from ..linsolve import petsc
+
+
+#: the private output directories of this process (a rank other than 0), removed at
+#: the end of its run, or by :func:`remove_private` where the process ends abruptly
+#: (the interrupt watchdog, MPI's launcher ending the job)
+_PRIVATE: list[Path] = []
+
+
+def remove_private() -> None:
+    """Remove this rank's private output directory, if any (idempotent)."""
+    while _PRIVATE:
+        shutil.rmtree(_PRIVATE.pop(), ignore_errors=True)
 
 
 @contextlib.contextmanager
@@ -33,15 +46,19 @@ def ranks(args):
             logging.getLogger("signorini").info("MPI: %d ranks", size)
         yield rank
         return
+    # an interrupt is rank 0's to handle: it writes the report of what converged; the
+    # launcher then ends the other ranks
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     private = None
     if getattr(args, "out", None) is not None:
         private = Path(tempfile.mkdtemp(prefix=f"signorini-rank{rank}-"))
+        _PRIVATE.append(private)
         args.out = str(private)
     logger = logging.getLogger("signorini")
     level = logger.level
     logger.setLevel(logging.ERROR)
-    # the same lines as rank 0's; an error that ends the run is printed after the streams
-    # are back (every rank prints it)
+    # the same lines as rank 0's, the same expected errors (rank 0 prints them); an
+    # unexpected exception's traceback is printed once the streams are back
     streams = sys.stdout, sys.stderr
     sys.stdout = sys.stderr = open(os.devnull, "w")  # noqa: SIM115 (closed below)
     try:
@@ -52,5 +69,4 @@ def ranks(args):
         sys.stdout.close()
         sys.stdout, sys.stderr = streams
         logger.setLevel(level)
-        if private is not None:
-            shutil.rmtree(private, ignore_errors=True)
+        remove_private()

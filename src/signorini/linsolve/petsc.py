@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import shlex
+import sys
 import time
 
 import numpy as np
@@ -48,10 +49,14 @@ INSTALL = ("solver 'petsc' needs petsc4py and mpi4py, an optional install: see d
 def petsc_modules():
     """(PETSc, MPI) from petsc4py and mpi4py, initialised; InputError if absent."""
     try:
-        import petsc4py  # noqa: F401, PLC0415  (lazy: an optional install)
+        import petsc4py  # noqa: PLC0415  (lazy: an optional install)
         from mpi4py import MPI  # noqa: PLC0415  (lazy, as above)
     except ImportError:
         raise InputError(INSTALL) from None
+    if "petsc4py.PETSc" not in sys.modules:
+        # PETSc's own handlers would turn an interrupt into a crash report and an abort:
+        # ours keep the converged increments (app.cli)
+        petsc4py.init(["signorini", "-no_signal_handler"])
     from petsc4py import PETSc  # noqa: PLC0415  (lazy, as above; initialises PETSc once)
     return PETSc, MPI
 
