@@ -77,7 +77,7 @@ def test_singular_matrix_is_reported():
 
 
 def test_solver_names():
-    assert set(SOLVERS) == {"superlu", "umfpack", "pardiso", "amg"}
+    assert set(SOLVERS) == {"superlu", "umfpack", "pardiso", "amg", "petsc", "petsc-amg"}
     with pytest.raises(sg.InputError, match="unknown linear solver"):
         get_solver("mumps")
 

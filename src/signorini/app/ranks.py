@@ -1,6 +1,8 @@
-"""A command run by every MPI rank (``mpiexec -n N signorini ... --solver petsc``):
-rank 0 prints and writes the outputs; the other ranks compute the same, silently,
-into a private directory removed at the end (docs/parallel.md)."""
+"""A command run by every MPI rank, rank 0 alone printing and writing.
+
+Under ``mpiexec -n N signorini ... --solver petsc`` every rank runs the command;
+the ranks other than 0 compute the same, silently, into a private directory
+removed at the end (docs/parallel.md)."""
 
 from __future__ import annotations
 
