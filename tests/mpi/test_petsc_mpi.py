@@ -54,10 +54,6 @@ def case(tmp: Path, name: str, solver: str, ranks: int | None):
     # (1e-11) leaves frictional sensitivities 1.6e-9 (serial amg) and 1.0e-9
     # (petsc-amg, 2 ranks) from the direct solve's, 1e-13 leaves 5e-11 and 4e-11
     tight = ["1e-13"] if solver.endswith("amg") else []
-    return case_cmd(tmp, name, solver, ranks, out, tight)
-
-
-def case_cmd(tmp, name, solver, ranks, out, tight):
     cmd = [sys.executable, str(CASE), name, solver, str(out), *tight]
     run(cmd if ranks is None else launcher(ranks) + cmd)
     return dict(np.load(out))

@@ -122,14 +122,20 @@ def _finalize_mpi() -> None:
     """End PETSc and MPI where a run (``--solver petsc``) started them: ``os._exit``
     skips their exit handlers, and MPI's launcher counts a rank that ends without
     finalising as failed. A rank's private output directory is removed first."""
-    ranks = sys.modules.get("signorini.app.ranks")
-    if ranks is not None:
-        ranks.remove_private()
+    _remove_private()
     petsc, mpi = sys.modules.get("petsc4py.PETSc"), sys.modules.get("mpi4py.MPI")
     if petsc is not None:
         petsc._finalize()
     if mpi is not None and mpi.Is_initialized() and not mpi.Is_finalized():
         mpi.Finalize()
+
+
+def _remove_private() -> None:
+    """Remove this rank's private output directory, where a run under mpiexec made one
+    (:mod:`signorini.app.ranks`, loaded only by such a run)."""
+    ranks = sys.modules.get("signorini.app.ranks")
+    if ranks is not None:
+        ranks.remove_private()
 
 
 #: seconds a signal may wait for the main thread (inside a library call: a
@@ -251,9 +257,7 @@ class _Watchdog:
             print(f"\nsignorini: {text} (the signal came inside a library call, which was "
                   "abandoned)", file=sys.stderr, flush=True)
         finally:
-            ranks = sys.modules.get("signorini.app.ranks")
-            if ranks is not None:
-                ranks.remove_private()
+            _remove_private()
             os._exit(128 + signum)
 
     def close(self):

@@ -212,10 +212,10 @@ def solver_options(p):
                         "(MKL, installed with signorini on x86-64), else superlu (SciPy); amg = "
                         "GMRES with algebraic multigrid (iterative, for large 3-D problems); petsc "
                         "= PETSc on the MPI ranks (mpiexec -n N signorini ...; MUMPS unless "
-                        "--petsc-options say otherwise), petsc-amg = amg with PETSc's GAMG cycle "
-                        "on the MPI ranks (an optional install: docs/parallel.md)")
+                        "--petsc-options say otherwise), petsc-amg = amg with its multigrid cycle "
+                        "run by PETSc on the MPI ranks (an optional install: docs/parallel.md)")
     p.add_argument("--petsc-options", default="", metavar="OPTIONS",
-                   help="PETSc options for --solver petsc, as one string (e.g. \"-ksp_type gmres "
+                   help="PETSc options for --solver petsc or petsc-amg, as one string (e.g. \"-ksp_type gmres "
                         "-pc_type gamg\")")
     p.add_argument("--force-size", action="store_true",
                    help="run even if the estimated memory exceeds what is available")

@@ -33,12 +33,9 @@ def remove_private() -> None:
 
 @contextlib.contextmanager
 def ranks(args):
-    """For a command run with ``--solver petsc``: PETSc's options from
-    ``--petsc-options`` and, on ranks other than 0, outputs to a private
-    directory and the log reduced to errors. Any other run: nothing."""
-    if getattr(args, "solver", None) not in ("petsc", "petsc-amg"):
-        yield 0
-        return
+    """A command run with a PETSc solver (``--solver petsc`` or ``petsc-amg``): PETSc's
+    options from ``--petsc-options`` and, on ranks other than 0, outputs to a
+    private directory and the log reduced to errors; yields the rank."""
     rank, size = petsc.world()
     options = getattr(args, "petsc_options", "") or ""
     if options:
@@ -51,7 +48,6 @@ def ranks(args):
     # an interrupt is rank 0's to handle: it writes the report of what converged; the
     # launcher then ends the other ranks
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    private = None
     if getattr(args, "out", None) is not None:
         private = Path(tempfile.mkdtemp(prefix=f"signorini-rank{rank}-"))
         _PRIVATE.append(private)

@@ -77,9 +77,18 @@ def insert_options(options: str) -> None:
     """Put PETSc options (a string as on PETSc's command line) into PETSc's global
     database, which every :class:`PetscSolver` reads (``--petsc-options``)."""
     PETSc, _ = petsc_modules()
-    opts = PETSc.Options()
-    for key, value in PetscSolver._parse(options):
-        opts[key] = value if value is not None else ""
+    _put(PETSc.Options(), PetscSolver._parse(options))
+
+
+def _on_ranks(solver, options: str) -> None:
+    """What both PETSc solvers keep: PETSc and MPI, the world's communicator, this
+    rank and their number, and their own ``options`` checked and parsed."""
+    solver.PETSc, solver.MPI = petsc_modules()
+    if not isinstance(options, str):
+        raise InputError(f"petsc options must be a string of PETSc options, got {options!r}")
+    solver.options, solver._pairs = options, PetscSolver._parse(options)
+    solver.comm = solver.PETSc.COMM_WORLD
+    solver.rank, solver.size = solver.comm.getRank(), solver.comm.getSize()
 
 
 def split_rows(n: int, size: int) -> np.ndarray:
@@ -102,13 +111,7 @@ class PetscSolver(LinearSolver):
     ITERATIVE_REFINE_TOL = 1e-10
 
     def __init__(self, options: str = ""):
-        self.PETSc, self.MPI = petsc_modules()
-        if not isinstance(options, str):
-            raise InputError(f"petsc options must be a string of PETSc options, got {options!r}")
-        self.options = options
-        self.comm = self.PETSc.COMM_WORLD
-        self.rank, self.size = self.comm.getRank(), self.comm.getSize()
-        self._pairs = self._parse(options)
+        _on_ranks(self, options)
         self.factorizations = 0
         self.factorize_s = 0.0  # PETSc's factorisations (all ranks together)
         self.solve_s = 0.0      # its solves, the gathering of their solutions included
@@ -216,7 +219,7 @@ class PetscSolver(LinearSolver):
                    solve_from=None if direct else (lambda b, x0: columns(b, False, x0)))
         if direct:  # MUMPS's figures: a kept factorisation's worth (linsolve.kept.budget_of)
             f.flops, f.nbytes = _mumps_figures(ksp)
-        if not direct:
+        else:
             f.refine_tol = self.ITERATIVE_REFINE_TOL
         f._petsc = (ksp, A, x_vec, b_vec)  # kept alive with the factor
         return f
@@ -277,16 +280,11 @@ class PetscAMG(AMGKrylov):
 
     def __init__(self, options: str = "", hierarchy: str = "own", **kwargs):
         super().__init__(**kwargs)
-        self.PETSc, self.MPI = petsc_modules()
-        if not isinstance(options, str):
-            raise InputError(f"petsc options must be a string of PETSc options, got {options!r}")
         if hierarchy not in self.HIERARCHIES:
             raise InputError(f"petsc-amg: hierarchy must be one of {self.HIERARCHIES}, got "
                              f"{hierarchy!r}")
-        self.options, self.hierarchy = options, hierarchy
-        self._pairs = PetscSolver._parse(options)
-        self.comm = self.PETSc.COMM_WORLD
-        self.rank, self.size = self.comm.getRank(), self.comm.getSize()
+        _on_ranks(self, options)
+        self.hierarchy = hierarchy
         self.cycles = 0
         self.cycle_s = 0.0      # in PETSc's cycles, their gathering included
         self.setup_s = 0.0      # the hierarchies: pyamg's (every rank) and PETSc's set-up
@@ -445,6 +443,12 @@ def _with_unit_empty_rows(A) -> sp.csr_matrix:
     return (A + sp.diags(empty.astype(float))).tocsr()
 
 
+def _put(opts, pairs) -> None:
+    """(name, value or None for a flag) pairs into PETSc's options database ``opts``."""
+    for key, value in pairs:
+        opts[key] = value if value is not None else ""
+
+
 @contextlib.contextmanager
 def _options(PETSc, pairs):
     """``pairs`` (a solver's own options) in PETSc's global database while a KSP
@@ -452,8 +456,7 @@ def _options(PETSc, pairs):
     own), the database restored after."""
     opts = PETSc.Options()
     before = {key: opts.getString(key) if opts.hasName(key) else None for key, _ in pairs}
-    for key, value in pairs:
-        opts[key] = value if value is not None else ""
+    _put(opts, pairs)
     try:
         yield
     finally:
