@@ -25,6 +25,8 @@ Backends (``solver=`` of :func:`signorini.solve`, ``--solver`` of the CLI):
   :mod:`signorini.linsolve.multigrid`) on the displacements, the contact
   multipliers condensed node by node (:mod:`signorini.linsolve.iterative`), for
   large 3-D problems.
+* ``petsc``, ``petsc-amg`` -- MUMPS, or ``amg`` with its cycle run by PETSc, over
+  MPI ranks (:mod:`signorini.linsolve.petsc`; an optional install, docs/parallel.md).
 * ``auto`` (the default) -- the fastest direct one installed: pardiso, else superlu.
 """
 
@@ -35,6 +37,7 @@ from .mkl import mkl_max_threads, mkl_threads, openblas_single_thread
 from .pardiso import Pardiso
 from .iterative import AMGKrylov
 from .multigrid import product_threads
+from .petsc import PetscAMG, PetscSolver
 from .select import (
     AUTO_ORDER, SOLVERS, SYMMETRY_TOL, TangentSolver, available, blocks_symmetric, for_model,
     get_solver, is_symmetric)
@@ -43,7 +46,7 @@ from .umfpack import Umfpack
 
 __all__ = [
     "AMGKrylov", "AUTO_ORDER", "GB", "REFINE_STEPS", "REFINE_TOL", "SOLVERS", "SYMMETRY_TOL", "Factor",
-    "LinearSolver", "Pardiso", "SuperLU", "TangentSolver", "Umfpack", "available",
+    "LinearSolver", "Pardiso", "PetscAMG", "PetscSolver", "SuperLU", "TangentSolver", "Umfpack", "available",
     "available_memory", "blocks_symmetric", "check_size", "diagonal", "estimated_peak_memory",
     "for_model", "get_solver", "is_symmetric", "mkl_max_threads", "mkl_threads", "openblas_single_thread",
     "product_threads",
