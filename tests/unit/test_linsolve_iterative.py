@@ -125,25 +125,95 @@ def test_solve_to_of_direct_and_iterative_factors():
     assert calls == [1e-2] and g.relative_residual == pytest.approx(0.5)
 
 
-def test_newton_corrections_reuse_the_last_hierarchy(monkeypatch):
-    """An inexact solve uses the last multigrid hierarchy for up to REUSE solves; a
-    full solve (the sensitivities) builds its own: fewer setups, the same solution."""
-    pb = hertz3d(block(n=5))
-    built = {}
-    for reuse in (0, AMGKrylov.REUSE):
+def _setups(lin, monkeypatch) -> list:
+    """The cycles ``lin`` builds (one per hierarchy set up), recorded."""
+    built = []
+    real = lin._cycle
+    monkeypatch.setattr(lin, "_cycle", lambda *a: built.append(real(*a)) or built[-1])
+    return built
+
+
+@pytest.mark.parametrize("friction", [False, True])
+def test_a_kept_hierarchy_serves_tangents_that_differ_in_contact_rows(friction, monkeypatch):
+    """Newton's tangents and the increments' differ in the contact nodes' rows: one
+    hierarchy serves them all, its finest level made anew for the full solves
+    (frictionless: Newton's corrections, the condensed sensitivity solve building
+    its own; with friction: the whole path, sensitivities included), with the
+    solution and the sensitivities of a hierarchy built for every tangent (the
+    inexact Newton iterates differ, so its iteration count may)."""
+    pb = hertz3d_friction(block(n=5)) if friction else hertz3d(block(n=5))
+    steps = 3 if friction else 1
+    out = {}
+    for refresh in (True, False):
         lin = AMGKrylov()
-        lin.REUSE = reuse
-        calls = []
-        real = lin._hierarchy
-        monkeypatch.setattr(lin, "_hierarchy",
-                            lambda *a, real=real, calls=calls: calls.append(1) or real(*a))
-        sol = sg.solve(pb, wrt=["R"], solver=lin)
-        built[reuse] = (len(calls), sol.newton_iterations[0], sol.contact())
-    n0, it0, c0 = built[0]
-    n4, it4, c4 = built[AMGKrylov.REUSE]
-    assert n0 == it0 + 1  # a hierarchy per correction, one for the sensitivities
-    assert n4 == -(-it4 // (AMGKrylov.REUSE + 1)) + 1 < n0
-    same(c0, c4, ["p_N", "dp_N_dR"], tol=1e-9)
+        if not refresh:  # a new hierarchy for every tangent
+            lin.REFRESH_ROWS, lin.REUSE = -1.0, 0
+        built = _setups(lin, monkeypatch)
+        sol = sg.solve(pb, steps=steps, wrt=["R"], solver=lin)
+        out[refresh] = (len(built), sum(sol.newton_iterations), sol.contact())
+    n1, _, c1 = out[True]
+    n0, its0, c0 = out[False]
+    if friction:
+        assert n1 == 1 and n0 == its0 + steps  # a tangent per correction and per increment's end
+    else:
+        assert n1 == 2 and n0 == its0 + 1
+    same(c0, c1, ["p_N", "dp_N_dR"] + (["p_T", "dp_T_dR"] if friction else []), tol=1e-9)
+
+
+def test_a_tangent_that_changes_everywhere_gets_a_new_hierarchy_after_reuse(monkeypatch):
+    """A displacement block that differs from the kept hierarchy's in more than
+    REFRESH_ROWS of its rows (a material tangent: every row) is served REUSE
+    times, then gets a hierarchy of its own; one that differs in a few rows keeps
+    it. A refreshed cycle of the block it was built on is that cycle."""
+    from signorini.linsolve.multigrid import ChebyshevCycle
+    pb = hertz3d_friction(block(n=5))
+    captured = []
+    lin = AMGKrylov()
+    real = lin.factorize
+    monkeypatch.setattr(lin, "factorize", lambda K, symmetric=False: captured.append(K) or real(K, symmetric))
+    sg.solve(pb, steps=1, solver=lin)
+    K, structure = sp.csr_matrix(captured[-1]), lin.structure
+    lin = AMGKrylov()
+    lin.structure = structure
+    built = _setups(lin, monkeypatch)
+    b = np.random.default_rng(0).standard_normal(K.shape[0])
+    x = lin.factorize(K).solve(b)
+    assert len(built) == 1 and isinstance(built[0], ChebyshevCycle)
+    n_u = lin.structure.n_u
+    # a few rows changed: the kept hierarchy, its finest level made anew by a full solve
+    K2 = K.tolil()
+    K2[0, 0] *= 1.5
+    first = lin._kept.cycle
+    lin.factorize(sp.csr_matrix(K2)).solve(b)
+    assert len(built) == 1 and lin._kept.uses == 0
+    assert lin._kept.cycle is not first and lin._kept.cycle.levels[0].P is first.levels[0].P
+    # every row changed: REUSE tangents, then a new hierarchy
+    for i in range(AMGKrylov.REUSE + 1):
+        Ki = K.copy()
+        Ki[:n_u, :n_u] *= 1.0 + 0.01 * (i + 1)
+        y = lin.factorize(sp.csr_matrix(Ki)).solve(b)
+        assert np.linalg.norm(Ki @ y - b) <= 1e-10 * np.linalg.norm(b)
+        assert len(built) == (1 if i < AMGKrylov.REUSE else 2)
+    # refreshed with the very block it was built on (the symmetric part): the same cycle
+    cycle = built[0]
+    A = K[:n_u, :n_u]
+    full = lin._full(sp.csr_matrix(0.5 * (A + A.T)))
+    again = cycle.with_finest(full, lin.structure.dim)
+    r = np.random.default_rng(1).standard_normal(full.shape[0])
+    assert np.linalg.norm(again(r) - cycle(r)) <= 1e-12 * np.linalg.norm(cycle(r))
+    assert np.linalg.norm(K @ x - b) <= 1e-10 * np.linalg.norm(b)
+
+
+def test_nodal_inverse_of_a_csr_matrix_is_the_block_one():
+    """The smoother's inverse nodal blocks from a CSR matrix equal pyamg's from BSR."""
+    from signorini.linsolve.multigrid import nodal_inverse
+    A = sp.random(60, 60, density=0.2, random_state=1) + sp.eye(60) * 5.0
+    A = sp.csr_matrix(A + A.T)
+    a = nodal_inverse(A, 3).toarray()
+    b = nodal_inverse(A.tobsr(blocksize=(3, 3)), 3).toarray()
+    assert np.allclose(a, b, rtol=1e-12, atol=1e-14)
+    blk = A.toarray()[3:6, 3:6]
+    assert np.allclose(a[3:6, 3:6] @ blk, np.eye(3), atol=1e-12)
 
 
 def test_aggregates_follow_the_stretching_of_the_cells():
@@ -264,14 +334,15 @@ def test_several_right_hand_sides_share_their_search_space(monkeypatch):
     real = AMGKrylov._shared_gmres
 
     def keep(self, K, apply, b, rtol, x0=None):
-        captured.append((K, apply, b, self.structure))
+        if b.shape[1] > 1:  # the sensitivities' solve
+            captured.append((K, apply, b, self.structure))
         return real(self, K, apply, b, rtol, x0)
     monkeypatch.setattr(AMGKrylov, "_shared_gmres", keep)
     sg.solve(hertz3d_friction(block(n=5)), steps=2, wrt=["R", "E", "eps", "mu"], solver=AMGKrylov())
     K, apply, b, st = captured[-1]
     assert b.shape[1] == 4
     shared, alone = AMGKrylov(), AMGKrylov()
-    alone.RECYCLE_BYTES = 0  # each column by its own GMRES
+    shared.RECYCLE_BYTES, alone.RECYCLE_BYTES = 500_000_000, 0  # shared; each by its own GMRES
     x = real(shared, K, apply, b, 1e-11)
     y = alone._krylov(K, apply, b)
     for j in range(4):
@@ -324,7 +395,8 @@ def test_a_solve_starts_from_its_guess_where_the_guess_is_better_than_none():
     real = AMGKrylov._shared_gmres
 
     def keep(self, K, apply, b, rtol, x0=None):
-        captured.append((self, K))
+        if b.shape[1] > 1:  # the sensitivities' solve
+            captured.append((self, K))
         return real(self, K, apply, b, rtol, x0)
     import unittest.mock as um
     with um.patch.object(AMGKrylov, "_shared_gmres", keep):
@@ -368,7 +440,8 @@ def test_sensitivity_solves_start_from_the_increments_before(monkeypatch):
         def count(K, apply, b, rtol, x0=None, real=real, lin=lin, spent=spent):
             n0 = len(lin.iterations)
             x = real(K, apply, b, rtol, x0)
-            spent.append(sum(lin.iterations[n0:]))
+            if b.shape[1] > 1:  # the sensitivities' solves, not Newton's corrections
+                spent.append(sum(lin.iterations[n0:]))
             return x
         monkeypatch.setattr(lin, "_shared_gmres", count)
         sol = sg.solve(pb, steps=5, wrt=["R", "E", "mu"], solver=lin)

@@ -140,24 +140,15 @@ class _Level:
     """One level: A, the inverse of its nodal diagonal blocks, P, R and the
     Chebyshev interval."""
 
-    def __init__(self, level, degree: int):
-        from pyamg.util.utils import get_block_diag  # noqa: PLC0415  (lazy: pyamg)
-
-        A = level.A
+    def __init__(self, A, P, R, degree: int, blocksize: int = 1, interval=None):
         n = A.shape[0]
-        blocksize = A.blocksize[0] if A.format == "bsr" else 1
-        if blocksize > 1 and A.blocksize == (blocksize, blocksize):
-            Db = get_block_diag(A, blocksize=blocksize, inv_flag=True)
-            nb = n // blocksize
-            Dinv = sp.bsr_matrix((Db, np.arange(nb, dtype=np.int32),
-                                  np.arange(nb + 1, dtype=np.int32)), shape=A.shape)
-        else:
-            d = A.diagonal()
-            Dinv = sp.diags(np.where(d != 0, 1.0 / np.where(d != 0, d, 1.0), 0.0)).tocsr()
-        self.A, self.Dinv = RowSplit(A), RowSplit(Dinv)
-        self.P, self.R = (RowSplit(M if M.format == "bsr" else M.tocsr()) for M in (level.P, level.R))
-        lam = _lambda_max(self.A, self.Dinv, n)
-        self.hi, self.lo = 1.1 * lam, lam / RATIO
+        self.A, self.Dinv = RowSplit(A), RowSplit(nodal_inverse(A, blocksize))
+        self.P, self.R = (None if M is None else RowSplit(M if M.format == "bsr" else M.tocsr())
+                          for M in (P, R))
+        if interval is None:
+            lam = _lambda_max(self.A, self.Dinv, n)
+            interval = (1.1 * lam, lam / RATIO)
+        self.hi, self.lo = interval
         self.degree = degree
 
     def smooth(self, b, x=None):
@@ -189,11 +180,27 @@ class ChebyshevCycle:
     (the module's text); a level in BSR format is smoothed with its nodal blocks."""
 
     def __init__(self, ml):
-        self.levels = [_Level(lv, COARSE_DEGREE if i else DEGREE)
+        self.levels = [_Level(lv.A, lv.P, lv.R, COARSE_DEGREE if i else DEGREE,
+                              lv.A.blocksize[0] if lv.A.format == "bsr" else 1)
                        for i, lv in enumerate(ml.levels[:-1])]
         coarse = ml.levels[-1].A
         solve = ml.coarse_solver
         self._coarse = lambda b: solve(coarse, b)  # noqa: E731
+
+    def with_finest(self, A, blocksize: int) -> ChebyshevCycle:
+        """This cycle with its finest operator replaced by ``A`` (its smoother's
+        nodal blocks and interval made anew; the prolongators and the coarser
+        levels kept): the cycle of a tangent that differs from the one the
+        hierarchy was built for in a few rows (docs/theory.md §12.7). The
+        smoothed interval is kept: the largest eigenvalue of D^-1 A is a bound of
+        its rows, which a few changed rows hardly move."""
+        first = self.levels[0]
+        new = object.__new__(ChebyshevCycle)
+        new.levels = [_Level(A, None, None, first.degree, blocksize, (first.hi, first.lo))] \
+            + self.levels[1:]
+        new.levels[0].P, new.levels[0].R = first.P, first.R
+        new._coarse = self._coarse
+        return new
 
     def __call__(self, b, i: int = 0):
         if i == 0:
@@ -204,3 +211,31 @@ class ChebyshevCycle:
         x = lv.smooth(b)
         x += lv.P @ self(lv.R @ (b - lv.A @ x), i + 1)
         return lv.smooth(b, x)
+
+
+def nodal_inverse(A, blocksize: int):
+    """The inverse of the diagonal blocks of ``blocksize`` x ``blocksize`` of A
+    (a node's DOFs; ``blocksize`` 1: the diagonal), a block-diagonal BSR matrix
+    (CSR with blocks of 1). A zero diagonal entry (a row of 1) is left out."""
+    n = A.shape[0]
+    if blocksize == 1:
+        d = A.diagonal()
+        return sp.diags(np.where(d != 0, 1.0 / np.where(d != 0, d, 1.0), 0.0)).tocsr()
+    nb = n // blocksize
+    if A.format == "bsr" and A.blocksize == (blocksize, blocksize):
+        from pyamg.util.utils import get_block_diag  # noqa: PLC0415  (lazy: pyamg)
+        D = get_block_diag(A, blocksize=blocksize, inv_flag=True)
+    else:  # CSR: the entries within a node's block, gathered, then inverted
+        A = sp.csr_matrix(A)
+        A.sum_duplicates()  # one entry per position (a no-op on a canonical matrix)
+        rows = np.repeat(np.arange(n), np.diff(A.indptr))
+        inside = rows // blocksize == A.indices // blocksize
+        r, c = rows[inside], A.indices[inside]
+        D = np.zeros((nb, blocksize, blocksize))
+        D[r // blocksize, r % blocksize, c % blocksize] = A.data[inside]
+        try:
+            D = np.linalg.inv(D)
+        except np.linalg.LinAlgError:  # a singular block: its pseudo-inverse, as pyamg's
+            D = np.linalg.pinv(D)
+    return sp.bsr_matrix((D, np.arange(nb, dtype=np.int32), np.arange(nb + 1, dtype=np.int32)),
+                         shape=A.shape)
