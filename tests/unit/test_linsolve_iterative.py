@@ -469,3 +469,21 @@ def test_newton_with_an_iterative_solver_ends_without_a_wasted_correction():
         assert inc.newton.converged and len(res) >= 2
         assert res[-1] < 0.5 * res[-2], res
 
+
+
+def test_symmetric_part_keeps_no_stored_zeros():
+    """(A + A^T) / 2 on A's symmetric pattern, without the zeros A stores (a pair's
+    couplings of nodes not in contact: kept, they would join aggregates across the
+    two bodies); the same matrix where the pattern is not symmetric."""
+    from signorini.linsolve.iterative import symmetric_part
+    A = sp.random(40, 40, density=0.2, random_state=2, format="csr")
+    A = sp.csr_matrix(A + abs(A.T) + sp.eye(40))  # a symmetric pattern, unsymmetric values
+    A.data[::7] = 0.0  # stored zeros
+    A.data[1] = 0.0
+    S = symmetric_part(A)
+    dense = 0.5 * (A.toarray() + A.toarray().T)
+    assert np.array_equal(S.toarray(), dense)
+    assert S.nnz == np.count_nonzero(dense) < A.nnz
+    B = sp.csr_matrix(sp.triu(sp.random(40, 40, density=0.2, random_state=3)) + sp.eye(40))
+    assert np.allclose(symmetric_part(B).toarray(), 0.5 * (B.toarray() + B.toarray().T), rtol=0,
+                       atol=1e-15)
