@@ -325,7 +325,10 @@ class AMGKrylov(LinearSolver):
 
         def matrix():
             A = K[:n_u, :n_u]
-            return A if symmetric else symmetric_part(A)
+            if not symmetric:
+                return symmetric_part(A)
+            A.eliminate_zeros()  # a copy of K's block; its graph read by the aggregation
+            return A
         if n == n_u:
             return matrix, None, lambda v_cycle: self._apply(v_cycle, None)
         inv = sp.diags(1.0 / np.where(diag != 0, diag, 1.0))
