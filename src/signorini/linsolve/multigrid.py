@@ -23,6 +23,7 @@ its right-hand side.
 from __future__ import annotations
 
 import contextlib
+import copy
 import os
 from concurrent.futures import ThreadPoolExecutor
 
@@ -140,15 +141,11 @@ class _Level:
     """One level: A, the inverse of its nodal diagonal blocks, P, R and the
     Chebyshev interval."""
 
-    def __init__(self, A, P, R, degree: int, blocksize: int = 1, interval=None):
-        n = A.shape[0]
+    def __init__(self, A, P, R, degree: int, blocksize: int = 1):
         self.A, self.Dinv = RowSplit(A), RowSplit(nodal_inverse(A, blocksize))
-        self.P, self.R = (None if M is None else RowSplit(M if M.format == "bsr" else M.tocsr())
-                          for M in (P, R))
-        if interval is None:
-            lam = _lambda_max(self.A, self.Dinv, n)
-            interval = (1.1 * lam, lam / RATIO)
-        self.hi, self.lo = interval
+        self.P, self.R = (RowSplit(M if M.format == "bsr" else M.tocsr()) for M in (P, R))
+        lam = _lambda_max(self.A, self.Dinv, A.shape[0])
+        self.hi, self.lo = 1.1 * lam, lam / RATIO
         self.degree = degree
 
     def smooth(self, b, x=None):
@@ -194,12 +191,10 @@ class ChebyshevCycle:
         hierarchy was built for in a few rows (docs/theory.md §12.7). The
         smoothed interval is kept: the largest eigenvalue of D^-1 A is a bound of
         its rows, which a few changed rows hardly move."""
-        first = self.levels[0]
-        new = object.__new__(ChebyshevCycle)
-        new.levels = [_Level(A, None, None, first.degree, blocksize, (first.hi, first.lo))] \
-            + self.levels[1:]
-        new.levels[0].P, new.levels[0].R = first.P, first.R
-        new._coarse = self._coarse
+        first = copy.copy(self.levels[0])
+        first.A, first.Dinv = RowSplit(A), RowSplit(nodal_inverse(A, blocksize))
+        new = copy.copy(self)
+        new.levels = [first] + self.levels[1:]
         return new
 
     def __call__(self, b, i: int = 0):
