@@ -487,3 +487,13 @@ def test_symmetric_part_keeps_no_stored_zeros():
     B = sp.csr_matrix(sp.triu(sp.random(40, 40, density=0.2, random_state=3)) + sp.eye(40))
     assert np.allclose(symmetric_part(B).toarray(), 0.5 * (B.toarray() + B.toarray().T), rtol=0,
                        atol=1e-15)
+
+
+def test_a_preconditioner_returning_nan_is_a_solver_error():
+    """A cycle that returns NaN ends the solve with a SolverError naming the
+    preconditioner, not NumPy's least-squares error from inside GMRES."""
+    K = sp.csr_matrix(sp.eye(30) * 2.0)
+    lin = AMGKrylov()
+    with pytest.raises(SolverError, match="preconditioner returned non-finite"):
+        lin._krylov(K, lambda r: r * np.nan, np.ones(30))
+    assert np.allclose(lin._krylov(K, lambda r: 0.5 * r, np.ones(30)), 0.5)

@@ -485,7 +485,6 @@ class AMGKrylov(LinearSolver):
         n, k = b.shape
         K_, K = K, RowSplit(K)  # products on all the cores (multigrid.RowSplit)
         cap = int(min(self.max_iterations, self.RECYCLE_BYTES // (16 * n))) if k > 1 else 0
-        finite = True
         U = np.empty((n, cap), order="F")
         C = np.empty((n, cap), order="F")
         q = 0
@@ -532,13 +531,14 @@ class AMGKrylov(LinearSolver):
                         nw = float(np.linalg.norm(w))
                         if nw > 0.7071 * before:
                             break
+                    if not np.isfinite(nw):  # before the least squares, which would fail on it
+                        raise SolverError(_NOT_FINITE.format("non-finite values"))
                     H[i + 1, i] = nw
                     i += 1
                     its += 1
                     y, *_ = np.linalg.lstsq(H[:i + 1, :i], g[:i + 1], rcond=None)
                     est = float(np.linalg.norm(g[:i + 1] - H[:i + 1, :i] @ y))
-                    broke = not (nw > 1e-14 * beta and np.isfinite(nw))
-                    finite = finite and bool(np.isfinite(nw))
+                    broke = not nw > 1e-14 * beta
                     if broke:
                         break  # the space holds the solution (or the preconditioner failed)
                     V[:, i] = w / nw
@@ -559,8 +559,6 @@ class AMGKrylov(LinearSolver):
                         C[:, q:q + i] = V[:, :i] @ Qh[:i] if broke else V[:, :i + 1] @ Qh
                         q += i
                 del V, Z
-            if not finite or not np.all(np.isfinite(xj)):
-                raise SolverError(_NOT_FINITE.format("non-finite values"))
             if np.linalg.norm(bj - K @ xj) > rtol * nb:
                 # where the cycle stopped short (its residual's recurrence drifted from the
                 # true one near the accuracy of K U = C, or it ran out of directions):
