@@ -289,6 +289,9 @@ class Program:
         return d / (hashlib.blake2b(text.encode(), digest_size=20).hexdigest() + ".bin")
 
     def _build(self, args, sig):
+        _BUILT[0] += 1
+        if _BUILT[0] % CHECK_EVERY == 0:
+            relieve()
         path = self._path(sig)
         if path is not None:
             c = self._load(path)
@@ -408,6 +411,44 @@ def _lapack_ready() -> None:
         initialize_lapack()
     except Exception:  # noqa: BLE001  (another JAX: lower one such operation instead)
         jax.block_until_ready(jax.numpy.linalg.det(jax.numpy.eye(2)))
+
+
+def code_maps() -> tuple[int, int] | None:
+    """(memory mappings of this process, the most the system allows a process), or
+    None where the system does not say (not Linux).
+
+    Every executable in memory holds its machine code in mappings of its own, a
+    few hundred for a 3-D contact model's larger programs; Linux allows a process
+    ``vm.max_map_count`` of them (65,530 by default), and past it XLA's next
+    executable dies in a segmentation fault, not an error. The models kept for
+    reuse (:func:`signorini.algorithms.stepping.model_for`) are let go before that."""
+    try:
+        with open("/proc/sys/vm/max_map_count") as f:
+            limit = int(f.read())
+        with open("/proc/self/maps", "rb") as f:
+            used = sum(1 for _ in f)
+    except (OSError, ValueError):
+        return None
+    return used, limit
+
+
+#: the share of the memory mappings the system allows a process (:func:`code_maps`)
+#: past which the :data:`RELEASERS` let go of what they keep
+MAP_SHARE = 0.5
+#: executables built between two counts of the mappings (a count costs ~1 ms per 1,000)
+CHECK_EVERY = 8
+#: callables ``f(maps)`` that drop kept executables' owners (the models kept for reuse)
+RELEASERS: list = []
+_BUILT = [0]
+
+
+def relieve() -> None:
+    """Where the process holds more than :data:`MAP_SHARE` of the memory mappings
+    it may (:func:`code_maps`), ask the :data:`RELEASERS` to let go of what they keep."""
+    maps = code_maps()
+    if maps is not None and maps[0] > MAP_SHARE * maps[1]:
+        for release in RELEASERS:
+            release(maps)
 
 
 def max_bytes() -> int:

@@ -513,3 +513,49 @@ def test_a_kept_program_calling_lapack_loads_first_in_a_process(tmp_path):
     assert [r.returncode for r in runs] == [0, 0], runs[-1].stderr[-2000:]
     (v0, loaded0), (v1, loaded1) = (r.stdout.split() for r in runs)
     assert (loaded0, loaded1) == ("0", "1") and float(v0) == float(v1) == pytest.approx(5.6, rel=1e-14)
+
+
+def test_kept_models_are_let_go_before_the_process_runs_out_of_memory_mappings(monkeypatch):
+    """Every executable's code sits in memory mappings of its own (a few hundred for
+    a 3-D contact model's larger programs) and past ``vm.max_map_count`` XLA dies in
+    a segmentation fault: the models kept for reuse are let go (their executables
+    freed at once) when the mappings pass half the limit, when a model is built
+    and while its programs are built; the model in use stays."""
+    import gc
+    import weakref
+
+    maps = _programs.code_maps()
+    if maps is None:
+        pytest.skip("the system does not say how many memory mappings a process has")
+    assert 0 < maps[0] < maps[1]
+    monkeypatch.setattr(stepping, "_MODELS", stepping.OrderedDict())
+    pressed = [False]
+    real = _programs.code_maps
+    monkeypatch.setattr(stepping, "code_maps",
+                        lambda: (maps[1], maps[1]) if pressed[0] else real())
+    monkeypatch.setattr(_programs, "code_maps",
+                        lambda: (maps[1], maps[1]) if pressed[0] else real())
+
+    def solved(n_fine):
+        pb = hertz.hertz_problem(n_fine=n_fine, size=8)
+        sg.solve(pb, steps=1)
+        return stepping.model_for(pb)
+
+    first, second = solved(6), solved(8)
+    assert len(stepping._MODELS) == 2  # no pressure: both kept
+    gone = weakref.ref(first)
+    del first
+    pressed[0] = True  # a third model, the mappings at the limit: the older two go
+    third = solved(10)
+    gc.collect()
+    assert list(stepping._MODELS.values()) == [third]
+    assert gone() is None  # and its executables with it
+    # a program built while the mappings are at the limit lets go of every model
+    # but the one used last
+    pressed[0] = False
+    stepping._MODELS[object()] = second
+    stepping._MODELS.move_to_end(next(k for k, m in stepping._MODELS.items() if m is third))
+    pressed[0] = True
+    monkeypatch.setattr(_programs, "CHECK_EVERY", 1)
+    sg.solve(hertz.hertz_problem(n_fine=10, size=8), steps=1, wrt=["R"])  # builds the DDM's programs
+    assert list(stepping._MODELS.values()) == [third]

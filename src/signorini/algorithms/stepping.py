@@ -10,6 +10,7 @@ the factorised exact tangent.
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 import threading
 import time
@@ -21,6 +22,8 @@ import numpy as np
 
 from .. import timing
 from .._jax import jax, to_device
+from .. import _programs as programs
+from .._programs import code_maps
 from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
 from ..linsolve import Pardiso, TangentSolver, for_model, get_solver, openblas_single_thread
@@ -67,9 +70,36 @@ def model_for(problem: Problem) -> Model:
         m.check_values(problem.params)  # expressions of this problem's values (built once per model)
         return m
     m = _MODELS[key] = Model(problem, structure=key)
-    if len(_MODELS) > 8:
-        _MODELS.popitem(last=False)
+    _let_go(keep=key)
     return m
+
+
+#: the most models kept for reuse
+MAX_MODELS = 8
+
+
+def _let_go(keep=None, maps=None) -> None:
+    """Drop the models used least recently (never ``keep``, nor the one used last)
+    while more than :data:`MAX_MODELS` are kept or the process holds more than
+    :data:`~signorini._programs.MAP_SHARE` of the memory mappings the system allows
+    (each executable's code is mapped: :func:`~signorini._programs.code_maps`; a
+    process past the limit dies in XLA, a segmentation fault). A dropped model's
+    executables are freed at once (they sit in reference cycles) and are loaded
+    from the disk cache if it is built again."""
+    while len(_MODELS) > MAX_MODELS:
+        _MODELS.popitem(last=False)
+    maps = code_maps() if maps is None else maps
+    while maps is not None and maps[0] > programs.MAP_SHARE * maps[1] and len(_MODELS) > 1:
+        oldest = next(iter(_MODELS))
+        if oldest == keep:
+            break
+        log.debug("a kept model is let go: %d memory mappings of %d allowed", *maps)
+        del _MODELS[oldest]
+        gc.collect()
+        maps = code_maps()
+
+
+programs.RELEASERS.append(lambda maps: _let_go(maps=maps))
 
 
 def ddm_for(model: Model, names: Sequence[str]) -> DDMEngine | None:
