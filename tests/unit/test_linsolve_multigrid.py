@@ -45,34 +45,23 @@ def test_lambda_max_estimate_bounds_the_spectrum():
     assert 1.1 * est >= exact
 
 
-@pytest.mark.parametrize(("degree", "bound"), [(3, 0.5), (2, 0.65)])
-def test_chebyshev_cycle_is_a_linear_contraction(monkeypatch, degree, bound):
+def test_chebyshev_cycle_is_a_linear_contraction():
     """The cycle from a zero start is a fixed linear map, and as a stationary iteration
-    x <- x + V(b - A x) it converges fast (a V-cycle, not a smoother alone: the
-    finest level's smoother alone stalls, its rate above 0.9 within 15
-    iterations). Degree 2 on the finest level (the default) contracts a little less
-    than degree 3 and costs a product less per sweep (module text)."""
+    x <- x + V(b - A x) it converges fast (a V-cycle, not a smoother alone)."""
     import pyamg
-    monkeypatch.setattr(multigrid, "DEGREE", degree)
     A, B = elasticity(40)
     ml = pyamg.smoothed_aggregation_solver(A, B=B, max_coarse=50)
     assert len(ml.levels) >= 3
     V = ChebyshevCycle(ml)
-    assert V.levels[0].degree == degree
     rng = np.random.default_rng(2)
     b1, b2 = rng.standard_normal((2, A.shape[0]))
     assert np.allclose(V(2.0 * b1 + b2), 2.0 * V(b1) + V(b2), rtol=0, atol=1e-12 * np.abs(V(b1)).max())
-
-    def rates(step, n):
-        x, out = np.zeros_like(b1), []
-        for _ in range(n):
-            r = np.linalg.norm(b1 - A @ x)
-            x += step(b1 - A @ x)
-            out.append(np.linalg.norm(b1 - A @ x) / r)
-        return out, np.linalg.norm(b1 - A @ x)
-
-    cycle, left = rates(V, 15)
-    assert max(cycle[2:]) < bound, cycle
-    assert left < 1e-3 * np.linalg.norm(b1)
-    smoother, _ = rates(V.levels[0].smooth, 15)
-    assert smoother[-1] > 0.9, smoother
+    x = np.zeros_like(b1)
+    r0 = np.linalg.norm(b1)
+    rates = []
+    for _ in range(8):
+        r = np.linalg.norm(b1 - A @ x)
+        x += V(b1 - A @ x)
+        rates.append(np.linalg.norm(b1 - A @ x) / r)
+    assert max(rates[2:]) < 0.5, rates
+    assert np.linalg.norm(b1 - A @ x) < 1e-3 * r0

@@ -10,12 +10,7 @@ without Python's lock, so that they split by rows over threads. Degree 3 before
 and after the coarse correction needs as many Krylov iterations as the
 symmetric block Gauss-Seidel sweeps (34 against 33 on that block) at 0.17 s a
 cycle against 0.41 s on two cores; degree 2 on the coarser levels, denser than
-the finest, brings the cycle to 0.10 s for 37 iterations. Degree 2 on the
-finest level too costs a few more iterations and less time: on the sensitivity
-solves of a frictional path's converged tangent (three columns to 1e-11),
-162 iterations in 12.4 s against 158 in 13.9 s at 286k unknowns, 143 in 5.3 s
-against 150 in 6.4 s at 145k, and 49 in 0.34 s against 46 in 0.39 s on a 26k
-two-sphere pair.
+the finest, brings the cycle to 0.10 s for 37 iterations.
 
 The smoother is the Chebyshev iteration (Saad, *Iterative Methods for Sparse
 Linear Systems*, Algorithm 12.1) for D^-1 A on [lambda_max / RATIO, 1.1
@@ -37,8 +32,8 @@ import scipy.sparse as sp
 
 #: the smoother's polynomial degree, before and after the coarse correction, on the
 #: finest level and on the coarser ones (denser: level 1 of the 283k-DOF block has
-#: 1.25-1.5 times the finest level's nonzeros)
-DEGREE = 2
+#: 1.5 times the finest level's nonzeros)
+DEGREE = 3
 COARSE_DEGREE = 2
 #: the smoothed part of the spectrum: [lambda_max / RATIO, 1.1 lambda_max]
 RATIO = 30.0
