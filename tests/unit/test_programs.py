@@ -531,8 +531,6 @@ def test_kept_models_are_let_go_before_the_process_runs_out_of_memory_mappings(m
     monkeypatch.setattr(stepping, "_MODELS", stepping.OrderedDict())
     pressed = [False]
     real = _programs.code_maps
-    monkeypatch.setattr(stepping, "code_maps",
-                        lambda: (maps[1], maps[1]) if pressed[0] else real())
     monkeypatch.setattr(_programs, "code_maps",
                         lambda: (maps[1], maps[1]) if pressed[0] else real())
 

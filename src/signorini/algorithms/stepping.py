@@ -23,7 +23,6 @@ import numpy as np
 from .. import timing
 from .._jax import jax, to_device
 from .. import _programs as programs
-from .._programs import code_maps
 from .._deprecation import pop_old
 from ..errors import ConvergenceError, InputError, NonDifferentiableError, SingularTangentError
 from ..linsolve import Pardiso, TangentSolver, for_model, get_solver, openblas_single_thread
@@ -70,7 +69,7 @@ def model_for(problem: Problem) -> Model:
         m.check_values(problem.params)  # expressions of this problem's values (built once per model)
         return m
     m = _MODELS[key] = Model(problem, structure=key)
-    _let_go(keep=key)
+    _let_go()
     return m
 
 
@@ -78,9 +77,9 @@ def model_for(problem: Problem) -> Model:
 MAX_MODELS = 8
 
 
-def _let_go(keep=None, maps=None) -> None:
-    """Drop the models used least recently (never ``keep``, nor the one used last)
-    while more than :data:`MAX_MODELS` are kept or the process holds more than
+def _let_go(maps=None) -> None:
+    """Drop the models used least recently (never the one used last) while more
+    than :data:`MAX_MODELS` are kept or the process holds more than
     :data:`~signorini._programs.MAP_SHARE` of the memory mappings the system allows
     (each executable's code is mapped: :func:`~signorini._programs.code_maps`; a
     process past the limit dies in XLA, a segmentation fault). A dropped model's
@@ -88,18 +87,15 @@ def _let_go(keep=None, maps=None) -> None:
     from the disk cache if it is built again."""
     while len(_MODELS) > MAX_MODELS:
         _MODELS.popitem(last=False)
-    maps = code_maps() if maps is None else maps
+    maps = programs.code_maps() if maps is None else maps
     while maps is not None and maps[0] > programs.MAP_SHARE * maps[1] and len(_MODELS) > 1:
-        oldest = next(iter(_MODELS))
-        if oldest == keep:
-            break
         log.debug("a kept model is let go: %d memory mappings of %d allowed", *maps)
-        del _MODELS[oldest]
+        _MODELS.popitem(last=False)
         gc.collect()
-        maps = code_maps()
+        maps = programs.code_maps()
 
 
-programs.RELEASERS.append(lambda maps: _let_go(maps=maps))
+programs.RELEASERS.append(_let_go)
 
 
 def ddm_for(model: Model, names: Sequence[str]) -> DDMEngine | None:
