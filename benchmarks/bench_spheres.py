@@ -3,12 +3,14 @@ Hertz and Cattaneo–Mindlin, and the cost of a frictional two-body increment
 against the rigid sphere's (``signorini hertz3d --set mu=0.3``) of about the same size.
 
 Each case is the whole command in a fresh process (what a user waits for,
-compilation included, the program cache emptied first): wall time, peak
+compilation included, the program cache emptied first, or with ``--cache DIR`` the
+cache kept in DIR, so that a case run twice measures an empty then a filled cache): wall time, peak
 resident memory, DOFs, Newton iterations, Newton's assembly / factorisation /
 solve seconds, the compile seconds, and the comparison with the theory (p0, a
 in cells, c/a). Prints a table and writes benchmarks/results/spheres.csv.
 
     python benchmarks/bench_spheres.py [--cases frictionless,mindlin-0.5,rigid] [--csv FILE]
+                                       [--cache DIR]
 """
 
 from __future__ import annotations
@@ -49,8 +51,9 @@ for _r in (0.25, 0.5, 0.75):
         "--solver", "amg", "--wrt", "R1", "E1", "mu"]
 
 
-def one(case: str) -> dict:
-    with tempfile.TemporaryDirectory() as out, tempfile.TemporaryDirectory() as cache:
+def one(case: str, kept_cache: str | None = None) -> dict:
+    with tempfile.TemporaryDirectory() as out, tempfile.TemporaryDirectory() as empty:
+        cache = kept_cache or empty
         env = {**os.environ, "SIGNORINI_CACHE_DIR": cache}
         cmd = ["/usr/bin/time", "-f", "%M", sys.executable, "-m", "signorini.app.cli",
                *CASES[case], "--out", out]
@@ -64,7 +67,9 @@ def one(case: str) -> dict:
     nt = s["newton_time_s"]
     row = {"case": case, "dofs": s["mesh"]["dofs"], "steps": s["steps"],
            "newton_its": sum(s["newton_iterations"]), "wall_s": round(wall, 1),
-           "compile_s": round(s["timings"]["compile_s"], 1), "solve_s": round(s["time_solve_s"], 1),
+           "compile_s": round(s["timings"]["compile_s"], 1),
+           "programs_loaded": s["timings"]["compile"]["programs_loaded"],
+           "output_s": round(s["timings"]["output_s"], 1), "solve_s": round(s["time_solve_s"], 1),
            "assembly_s": round(nt["assembly"], 1), "factorization_s": round(nt["factorization"], 1),
            "newton_solve_s": round(nt["solve"], 1),
            "per_increment_s": round(s["time_solve_s"] / s["steps"], 2),
@@ -85,10 +90,12 @@ def main() -> None:
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--csv", default=str(HERE / "results" / "spheres.csv"),
                     help="the CSV to write (a subset of the cases: a file of its own)")
+    ap.add_argument("--cache", help="keep the program cache in this directory (default: an "
+                    "empty one per case)")
     args = ap.parse_args()
     rows = []
     for case in args.cases.split(","):
-        rows.append(one(case))
+        rows.append(one(case, args.cache))
         print(rows[-1], flush=True)
     report(rows, args.csv)
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from signorini.contact.friction import STATUS_NAMES
 from signorini.contact.mortar import pair
 from signorini.errors import InputError
 from signorini.fem.loads import Fixed, Pressure, Traction
@@ -214,6 +215,36 @@ def test_crown_ddm_equals_fd(crown):
         for k in ("p_N", "p_T"):
             fd = (f[0][k] - f[1][k]) / (2 * h)
             assert np.abs(c[f"d{k}_d{n}"] - fd).max() <= 1e-6 * scale, (n, k)
+
+
+def test_the_contact_table_equals_the_separate_functions(crown):
+    """``Solution.contact`` computes a surface's values and their sensitivities in
+    one program (the pair's clip once): they equal the model's separate pure
+    functions (fields, status, frames and contact forces) and their own JVPs; a
+    second call returns the kept result, which the caller cannot alter."""
+    pb, sol = crown
+    m, inc = sol.model, sol.increments[-1]
+    st_n = sol.state_before(-1)[0]
+    c = sol.contact()
+    f = m.contact_fields(inc.w, sol.jax_params, inc.t, 0)
+    status, slip = m.contact_status(inc.w, sol.jax_params, inc.t, st_n, 0)
+    frames = m.contact_frames(inc.w, sol.jax_params, inc.t, st_n, 0)
+    expected = {**f, "slip": slip, "normal": frames[0], "t1": frames[1], "t2": frames[2],
+                "traction": frames[3]}
+    scale = np.abs(c["p_N"]).max()
+    for k, v in expected.items():
+        assert np.abs(c[k] - np.asarray(v)).max() <= 1e-12 * max(scale, 1.0), k
+    assert np.array_equal(c["status"], np.array([STATUS_NAMES[k] for k in np.asarray(status)]))
+    _, d_fields = sol.response(lambda w, p, t: m.contact_fields(w, p, t, 0))
+    _, d_traction = sol.history_response(lambda w, p, t, st: m.contact_frames(w, p, t, st, 0)[3])
+    for n in NAMES:
+        ref = np.abs(c["dp_N_d" + n]).max()
+        for k in ("gap", "p_N", "p_T"):
+            assert np.abs(c[f"d{k}_d{n}"] - np.asarray(d_fields[n][k])).max() <= 1e-12 * ref, (n, k)
+        assert np.abs(c["dtraction_d" + n] - np.asarray(d_traction[n])).max() <= 1e-12 * ref, n
+    pN = c["p_N"].copy()
+    c["p_N"][:] = -1.0
+    assert np.array_equal(sol.contact()["p_N"], pN)
 
 
 def adjoint_equals_ddm(pb, names, steps):

@@ -75,6 +75,7 @@ class Solution:
         self.symmetric: bool | None = None  # symmetric factorisation of the tangent?
         self.shape_gradient = None  # (n_nodes, dim) adjoint gradient written with the last increment
         self.jax_params = as_jax(params)
+        self._kept_contact: dict = {}  # (increment, surface) -> (its Increment, names, contact())
 
     # -------------------------------------------------------------- basics
     def __repr__(self):
@@ -250,10 +251,40 @@ class Solution:
           on the body per reference area, a vector: what the supports balance),
           each (nc, 3); ``dtraction_d<name>`` its DDM sensitivities.
         """
+        inc = self._inc(i)
+        self._surface(surface)
+        key = (range(len(self.increments))[i], range(len(self.model.surfaces))[surface])
+        kept = self.__dict__.setdefault("_kept_contact", {})  # (a Solution pickled before it)
+        found = kept.get(key)
+        if not (found and found[0] is inc and found[1] == (tuple(self.names), tuple(inc.sens))):
+            # kept: a command's table, its VTU file and its series ask for the last increment
+            # three times, each time the whole surface with its sensitivities
+            if len(kept) >= 4:
+                kept.pop(next(iter(kept)))
+            found = kept[key] = (inc, (tuple(self.names), tuple(inc.sens)),
+                                               self._contact(i, surface))
+        return {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in found[2].items()}
+
+    def _contact(self, i: int, surface: int) -> dict:
+        """:meth:`contact`, computed."""
         m = self.model
         s = self._surface(surface)
-        val, sens = self._contact_fields(i, surface)
         out = {"node": s.nodes, "x_ref": self.reference()[s.nodes], "x": self.current(i)[s.nodes]}
+        if not m.by_kind:  # one program: the contact inputs (a pair's clip) once
+            history = bool(m.has_history)
+            fn = ((lambda w, p, t, st: m.contact_report(w, p, t, st, surface)) if history else
+                  (lambda w, p, t: m.contact_report(w, p, t, None, surface)))
+            (val, aux), sens = self.evaluate(fn, i, True, ("contact-report", surface), history,
+                                             aux=True)
+            out.update(val)
+            out.update(aux)
+            if "status" in aux:
+                out["status"] = np.array([STATUS_NAMES[k] for k in aux["status"]])
+            for name, d in sens.items():
+                for key, v in d.items():
+                    out[f"d{key}_d{name}"] = v  # dgap_d<name>, dp_N_d<name>, ...
+            return out
+        val, sens = self._contact_fields(i, surface)
         out.update({k: np.asarray(v) for k, v in val.items()})
         for name, d in sens.items():
             out[f"dp_N_d{name}"] = np.asarray(d["p_N"])
@@ -359,8 +390,9 @@ class Solution:
         material, reactions with friction): the JVP carries D state_n / D phi too."""
         return self.evaluate(fn, i, True, key, with_state=True)
 
-    def evaluate(self, fn, i, with_sensitivities, key, with_state):
-        """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k])."""
+    def evaluate(self, fn, i, with_sensitivities, key, with_state, aux: bool = False):
+        """fn(w, params, t[, state_n]) and its JVPs along (w_dot_k, e_k[, state_dot_k]);
+        with ``aux``, fn returns (value, aux) and so does this, aux without JVPs."""
         inc = self._inc(i)
         w = to_device(inc.w)
         state, sdot = self.state_before(i) if with_state else (None, None)
@@ -375,13 +407,17 @@ class Solution:
             own = (key is not None and getattr(fn, "__module__", "").startswith("signorini.")
                    and not (isinstance(key, tuple) and key[:1] == ("signorini.optimize",)))
             program = self.model.program if own else (lambda f, name: Program(f, name))
-            name = f"response:{key!r}:{with_state}"
+            name = f"response:{key!r}:{with_state}" + (":aux" if aux else "")
             val_fn = program(fn, name)
 
             def value_and_jvp(w, p, t, st, a, b, c):
                 # the value once, and its linear map along every direction: the value
                 # comes with the JVPs at no extra cost (no value program to compile)
-                val, lin = jax.linearize(lambda w_, p_, s_: fn(w_, p_, t, *s_), w, p, st)
+                f = lambda w_, p_, s_: fn(w_, p_, t, *s_)  # noqa: E731
+                if aux:
+                    val, lin, extra = jax.linearize(f, w, p, st, has_aux=True)
+                    return (val, extra), jax.vmap(lin)(a, b, c)
+                val, lin = jax.linearize(f, w, p, st)
                 return val, jax.vmap(lin)(a, b, c)
 
             jvp_fn = program(value_and_jvp, name + ":jvp")

@@ -57,7 +57,10 @@ class ModelFields:
         slave body at its nodes, gathered from every slave node's patch (the master
         body receives the opposite). ``state_n``: the state before the increment,
         needed with friction."""
-        s, x, lam, A, geo, cp, Xs, h = self._surface_state(w, params, t, state_n, surface)
+        return self._forces_at(*self._surface_state(w, params, t, state_n, surface))
+
+    def _forces_at(self, s, x, lam, A, geo, cp, Xs, h):
+        """:meth:`contact_forces` from a surface's contact inputs (:meth:`_surface_state`)."""
         meth = s.contact.method
         d = self.dim
         rows = jax.vmap(lambda xs, ls, a, hs, X0: meth.residual(
@@ -68,6 +71,35 @@ class ModelFields:
         pn = s.patches.nodes  # (nc, P): a patch's rows, scattered as the residual is
         f = -rows[:, :pn.shape[1] * d].reshape(pn.shape + (d,))
         return jnp.zeros((self.n_nodes, d)).at[pn].add(f)[s.nodes]
+
+    def contact_report(self, w, params, t, state_n, surface: int = 0):
+        """Pure function: everything :meth:`Solution.contact` reports of a surface, its
+        contact inputs (the mortar clip of a pair) computed once: ``(values, aux)``,
+        ``values`` what has DDM sensitivities (``gap``, ``p_N``, ``p_T`` and in 3-D
+        ``traction``, as :meth:`contact_fields` and :meth:`contact_frames`), ``aux``
+        what has none (``area``; in 3-D ``normal``, ``t1``, ``t2``; with friction
+        ``status`` and ``slip``, as :meth:`contact_status`)."""
+        inputs = self._surface_state(w, params, t, state_n, surface)
+        s, x, lam, A, geo, cp, Xs, h = inputs
+        meth = s.contact.method
+        obstacle = lambda X0: self.obstacle_at(s, X0)  # noqa: E731
+        hax = 0 if h is not None else None
+        g = jax.vmap(lambda xs, X0: obstacle(X0).gap(xs, geo))(x, Xs)
+        pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(xs, ls, a, geo, obstacle(X0), cp))(
+            x, lam, A, Xs)
+        values, aux = {"gap": g, "p_N": pN, "p_T": pT}, {"area": A}
+        if self.dim == 3:
+            def frame(xs, hs, X0):
+                n = obstacle(X0).normal(xs, geo)
+                e = hs[1] if hs is not None else jnp.eye(3)[jnp.argmin(jnp.abs(X0[1]))]
+                return (n,) + tangent_basis(n, e)
+            aux["normal"], aux["t1"], aux["t2"] = jax.vmap(frame, (0, hax, 0))(x, h, Xs)
+            values["traction"] = self._forces_at(*inputs) / A[:, None]
+        if meth.status is not None:
+            aux["status"] = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
+                xs, ls, a, geo, obstacle(X0), cp, hs))(x, lam, A, h, Xs)
+            aux["slip"] = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, obstacle(X0), hs))(x, h, Xs)
+        return values, aux
 
     def contact_status(self, w, params, t, state_n, surface: int = 0):
         """Pure function: per-node (status code, slip increment g_T) of a friction
