@@ -52,8 +52,10 @@ def test_element_kernels_in_chunks_equal_one_vmap(monkeypatch):
     inc, st = ref.increments[-1], ref.increments[-2].state
     (R1, b1), (R2, b2) = (mm.local_tangents(inc.w, p, inc.t, st) for mm in (ref_m, m))
     assert np.max(np.abs(R1 - R2)) <= 1e-13 * np.max(np.abs(R1))
+    # (the element blocks: 1.36e-14 of the largest on one host's Xeon, whose vector
+    # code orders the Gauss sums of the two compilations differently; the residual's bound)
     for x, y in zip(b1, b2):
-        assert np.max(np.abs(x - y)) <= 1e-14 * np.max(np.abs(x))
+        assert np.max(np.abs(x - y)) <= 1e-13 * np.max(np.abs(x))
     for a, b in zip(ref.increments, got.increments):
         assert np.max(np.abs(a.w - b.w)) <= 1e-13 * np.max(np.abs(a.w))
         # the tangent's condition number is ~1e13 here: two runs of the very same

@@ -270,7 +270,7 @@ class Solution:
         m = self.model
         s = self._surface(surface)
         out = {"node": s.nodes, "x_ref": self.reference()[s.nodes], "x": self.current(i)[s.nodes]}
-        if not m.by_kind:  # one program: the contact inputs (a pair's clip) once
+        if m.dim == 3 and not m.by_kind:  # one program: the contact inputs (a pair's clip) once
             history = bool(m.has_history)
             fn = ((lambda w, p, t, st: m.contact_report(w, p, t, st, surface)) if history else
                   (lambda w, p, t: m.contact_report(w, p, t, None, surface)))
