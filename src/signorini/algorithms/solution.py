@@ -254,15 +254,14 @@ class Solution:
         inc = self._inc(i)
         self._surface(surface)
         key = (range(len(self.increments))[i], range(len(self.model.surfaces))[surface])
-        kept = self.__dict__.setdefault("_kept_contact", {})  # (a Solution pickled before it)
+        kept = self._kept_contact
         found = kept.get(key)
         if not (found and found[0] is inc and found[1] == (tuple(self.names), tuple(inc.sens))):
             # kept: a command's table, its VTU file and its series ask for the last increment
             # three times, each time the whole surface with its sensitivities
             if len(kept) >= 4:
                 kept.pop(next(iter(kept)))
-            found = kept[key] = (inc, (tuple(self.names), tuple(inc.sens)),
-                                               self._contact(i, surface))
+            found = kept[key] = (inc, (tuple(self.names), tuple(inc.sens)), self._contact(i, surface))
         return {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in found[2].items()}
 
     def _contact(self, i: int, surface: int) -> dict:
