@@ -170,7 +170,12 @@ def test_lbfgsb_with_the_adjoint_gradient_recovers_E_and_mu(measured):
     assert res.n_solves == len(res.evaluations) <= 41 and len(adjoint) >= 5
     assert all(e.kind == "value+gradient" for e in adjoint)
     assert np.array_equal(ddm.x, res.x) and ddm.F == pytest.approx(res.misfit, rel=1e-12)
-    assert min(e.F for e in adjoint) == pytest.approx(res.misfit, rel=1e-9, abs=1e-28)
+    # the best adjoint point's misfit is the DDM solve's at the same x, to round-off: the two
+    # solves run different programs, so each residual (relative to its curve's largest value,
+    # 2 STEPS of them) may differ by Newton's rtol, and F = r^T r by 2 |r| sqrt(2 STEPS) rtol
+    # (at this noise-free optimum F ~ 1.5e-15 is itself round-off: 5e-9 apart has been seen)
+    slack = 2 * np.sqrt(res.misfit * 2 * STEPS) * TIGHT.rtol
+    assert min(e.F for e in adjoint) == pytest.approx(res.misfit, rel=1e-12, abs=slack)
     for i, n in enumerate(["E", "mu"]):
         assert res.stderr[n] < 1e-6 * res.x[i]
 
@@ -340,7 +345,28 @@ def test_the_documentation_example_runs_and_prints_what_it_shows():
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         exec(compile(code[0], "docs/fitting.md", "exec"), {"__name__": "fitting"})
-    assert out.getvalue().strip() == shown[0].strip()
+    _same_to_the_printed_digits(out.getvalue().strip(), shown[0].strip())
+
+
+NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?%?")
+
+
+def _same_to_the_printed_digits(got: str, shown: str) -> None:
+    """`got` prints what `shown` shows: the same words, and each number within one unit
+    of its last printed digit. The optimiser's iteration and solve counts and its
+    termination reason are left out: its last steps are decided by differences of the
+    misfit at round-off, which differ between machines (4 iterations, `xtol`, on one;
+    5, `ftol`, on another, with the same fitted values to 1e-9)."""
+    run = re.compile(r"converged in \d+ iterations, \d+ solves \(.*?\)")
+    got, shown = run.sub("converged (...)", got), run.sub("converged (...)", shown)
+    assert NUMBER.sub("#", got) == NUMBER.sub("#", shown), (got, shown)
+    for a, b in zip(NUMBER.findall(got), NUMBER.findall(shown), strict=True):
+        a, b = a.rstrip("%"), b.rstrip("%")
+        mantissa = b.lower().split("e")[0]
+        decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+        exponent = int(b.lower().split("e")[1]) if "e" in b.lower() else 0
+        unit = 10.0 ** (exponent - decimals)
+        assert abs(float(a) - float(b)) <= unit * (1 + 1e-9), (a, b, got)
 
 
 # ------------------------------------------------ a curve against a measured abscissa
