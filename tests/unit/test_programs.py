@@ -176,6 +176,27 @@ def test_the_digest_does_not_depend_on_where_the_source_lives():
     assert a is not None and a == b and a != c
 
 
+def test_three_dimensional_models_are_known_by_content():
+    """A 3-D problem of hexahedra, of tetrahedra or of both has a content digest
+    (its programs are kept between processes), the same for the same problem built
+    twice and another for another cell kind."""
+    from signorini.fem.mesh import merge
+    from signorini.fem.mesh3d import box, tetrahedra
+    from signorini.model.identity import stable_digest, structure_key
+
+    def problem(kind):
+        b = box(np.linspace(0, 1, 3), np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+        mesh = {"hex": b, "tet": tetrahedra(b),
+                "mixed": merge({"low": b, "up": tetrahedra(box(*[np.linspace(0, 1, 3)] * 2,
+                                                               np.linspace(1, 2, 3)))})}[kind]
+        return sg.Problem(mesh, sg.LinearElastic(E="E"), {"E": 1.0, "nu": 0.3},
+                          fixed=[sg.Fixed("z0" if kind != "mixed" else "low.z0", k) for k in range(3)])
+
+    digests = {k: stable_digest(structure_key(problem(k))) for k in ("hex", "tet", "mixed")}
+    assert None not in digests.values() and len(set(digests.values())) == 3
+    assert digests["hex"] == stable_digest(structure_key(problem("hex")))
+
+
 def test_one_program_per_kind_serves_every_mesh_size(cache, monkeypatch):
     """The element and contact kernels of meshes larger than
     Model.WHOLE_MESH_UP_TO cells (lowered here to 0: small meshes, cheap) are

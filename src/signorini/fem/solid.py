@@ -76,17 +76,20 @@ class CellType:
         return np.stack([self.shape(xi + e) - self.shape(xi) for e in np.eye(3)], axis=1)
 
 
-def _hex_shape(xi):
-    c = HEX_CORNERS
+HEX_CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                        [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
+
+
+# The shape functions read no global name (their data are defaults): a model's key
+# (model.identity) then knows them by their code and data, so that its programs are
+# kept between processes; a function reading a global is known by its identity only.
+def _hex_shape(xi, c=HEX_CORNERS):
     return 0.125 * (1 + c[:, 0] * xi[0]) * (1 + c[:, 1] * xi[1]) * (1 + c[:, 2] * xi[2])
 
 
-def _tet_shape(xi):
-    return np.array([1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]])
-
-
-HEX_CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
-                        [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
+def _tet_shape(xi, a=np.array([1.0, 0.0, 0.0, 0.0]),
+               b=np.array([[-1.0, -1.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])):
+    return a + b @ xi
 
 #: trilinear hexahedron (VTK/gmsh node order), 2x2x2 Gauss points
 HEXAHEDRON = CellType(
