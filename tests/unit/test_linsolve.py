@@ -470,6 +470,33 @@ def test_a_general_lu_that_stalled_is_analysed_again_without_matching():
     assert _rel(sol.w_sensitivity("R1"), ref.w_sensitivity("R1")) < 1e-8
 
 
+def test_the_symmetry_figures_see_every_block_of_a_large_array():
+    """The figures are computed by chunks of blocks: an asymmetry (at the test's
+    relative 1e-12, just above and just below) or a NaN in the first, a middle or the
+    last block of 5,000 (24 x 24: chunks of 113) is seen; the largest |entry| may be
+    a negative one."""
+    from signorini.linsolve import SYMMETRY_TOL, blocks_symmetric
+
+    rng = np.random.default_rng(1)
+    b = rng.standard_normal((5000, 24, 24))
+    b = b + np.swapaxes(b, 1, 2)
+    scale = np.abs(b).max()
+    assert blocks_symmetric([b])
+    for e in (0, 2261, 4999):
+        for factor, expected in ((3.0, False), (0.3, True)):
+            c = b.copy()
+            c[e, 5, 17] += factor * SYMMETRY_TOL * scale
+            assert blocks_symmetric([c]) is expected, (e, factor)
+        c = b.copy()
+        c[e, 3, 3] = np.nan
+        assert not blocks_symmetric([c])
+    c = -np.abs(b)  # symmetric, every entry <= 0: the scale is the largest |entry|
+    c[4999, 0, 1] -= 0.3 * SYMMETRY_TOL * scale
+    assert blocks_symmetric([c])
+    c[4999, 0, 1] -= 3.0 * SYMMETRY_TOL * scale
+    assert not blocks_symmetric([c])
+
+
 def test_symmetry_figures_of_a_block_array_are_kept_only_while_it_lives():
     """The symmetry test keeps the figures of a read-only block array; another array
     (even one that reuses a freed array's address) and a writable one are tested

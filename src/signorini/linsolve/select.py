@@ -120,7 +120,14 @@ def _block_stats(b: np.ndarray) -> tuple[float, float]:
     frozen = not b.flags.writeable
     stats = _BLOCK_STATS.get(b) if frozen else None
     if stats is None:
-        stats = (float(np.max(np.abs(b))), float(np.max(np.abs(b - np.swapaxes(b, -1, -2)))))
+        # by chunks of blocks that stay in cache (no temporary the size of b); b - b^T is
+        # antisymmetric, so its largest entry is its largest |entry|; a NaN propagates
+        size, top, asym = max(1, 2 ** 16 // max(1, b[0].size)), [0.0], [0.0]
+        for lo in range(0, len(b), size):
+            c = b[lo:lo + size]
+            top += [c.max(), -c.min()]
+            asym.append((c - np.swapaxes(c, -1, -2)).max())
+        stats = (float(np.max(top)), float(np.max(asym)))
         if frozen:
             _BLOCK_STATS.put(b, stats)
     return stats

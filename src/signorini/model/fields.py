@@ -19,13 +19,10 @@ class ModelFields:
     def contact_fields(self, w, params, t, surface: int = 0):
         """Pure function: per-node gap g, p_N, p_T and area of a surface (each (nc,))."""
         s = self.surfaces[surface]
-        X = self.reference(params)
         u, lams = self.split(w)
-        x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[surface], params, t)
-        meth = s.contact.method
-        g = jax.vmap(lambda xs, X0: self.obstacle_at(s, X0).gap(xs, geo))(x, Xs)
-        pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
-            xs, ls, a, geo, self.obstacle_at(s, X0), cp))(x, lam, A, Xs)
+        x, lam, A, geo, cp, Xs = self.contact_inputs(s, self.reference(params), u, lams[surface],
+                                                     params, t)
+        g, pN, pT = self._gap_and_tractions(s, x, lam, A, geo, cp, Xs)
         return {"gap": g, "p_N": pN, "p_T": pT, "area": A}
 
     def _surface_state(self, w, params, t, state_n, surface: int):
@@ -35,20 +32,43 @@ class ModelFields:
         inputs = self.contact_inputs(s, self.reference(params), u, lams[surface], params, t)
         return (s,) + tuple(inputs) + (self._node_history(surface, state_n),)
 
+    # Each of the following takes a surface's contact inputs (:meth:`_surface_state`), so
+    # that :meth:`contact_report` computes them (the mortar clip of a pair) once for all.
+    def _gap_and_tractions(self, s, x, lam, A, geo, cp, Xs):
+        """Per node (nc,) each: the gap, p_N and |p_T|."""
+        meth = s.contact.method
+        g = jax.vmap(lambda xs, X0: self.obstacle_at(s, X0).gap(xs, geo))(x, Xs)
+        pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(
+            xs, ls, a, geo, self.obstacle_at(s, X0), cp))(x, lam, A, Xs)
+        return g, pN, pT
+
+    def _frames_at(self, s, x, geo, Xs, h):
+        """(3-D) per node (nc, 3) each: the obstacle's normal n' and the tangent basis
+        (t1, t2) of the tangential multipliers (from the history's reference vector,
+        or before any history from a coordinate axis)."""
+        def frame(xs, hs, X0):
+            n = self.obstacle_at(s, X0).normal(xs, geo)
+            e = hs[1] if hs is not None else jnp.eye(3)[jnp.argmin(jnp.abs(X0[1]))]
+            return (n,) + tangent_basis(n, e)
+        return jax.vmap(frame, (0, 0 if h is not None else None, 0))(x, h, Xs)
+
+    def _status_at(self, s, x, lam, A, geo, cp, Xs, h):
+        """Per node (nc,) the friction status code and (nc, ...) the slip increment."""
+        meth = s.contact.method
+        st = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
+            xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
+        gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self.obstacle_at(s, X0), hs))(x, h, Xs)
+        return st, gt
+
     def contact_frames(self, w, params, t, state_n, surface: int = 0):
         """Pure function (3-D): per node of a surface (each (nc, 3)) the obstacle's
         normal n' at the node, the tangent basis (t1, t2) of its tangential
         multipliers, and the contact force on the body per reference area
         (:meth:`contact_forces` / A_S: what balances the supports; with linearised
         kinematics along the body's reference normal)."""
-        s, x, lam, A, geo, cp, Xs, h = self._surface_state(w, params, t, state_n, surface)
-
-        def frame(xs, hs, X0):
-            n = self.obstacle_at(s, X0).normal(xs, geo)
-            e = hs[1] if hs is not None else jnp.eye(3)[jnp.argmin(jnp.abs(X0[1]))]
-            return (n,) + tangent_basis(n, e)
-        frames = jax.vmap(frame, (0, 0 if h is not None else None, 0))(x, h, Xs)
-        return frames + (self.contact_forces(w, params, t, state_n, surface) / A[:, None],)
+        inputs = self._surface_state(w, params, t, state_n, surface)
+        s, x, _lam, A, geo, _cp, Xs, h = inputs
+        return self._frames_at(s, x, geo, Xs, h) + (self._forces_at(*inputs) / A[:, None],)
 
     def contact_forces(self, w, params, t, state_n=None, surface: int = 0):
         """Pure function: (nc, dim) the contact force on the body at each node of a
@@ -81,36 +101,20 @@ class ModelFields:
         ``status`` and ``slip``, as :meth:`contact_status`)."""
         inputs = self._surface_state(w, params, t, state_n, surface)
         s, x, lam, A, geo, cp, Xs, h = inputs
-        meth = s.contact.method
-        obstacle = lambda X0: self.obstacle_at(s, X0)  # noqa: E731
-        hax = 0 if h is not None else None
-        g = jax.vmap(lambda xs, X0: obstacle(X0).gap(xs, geo))(x, Xs)
-        pN, pT = jax.vmap(lambda xs, ls, a, X0: meth.tractions(xs, ls, a, geo, obstacle(X0), cp))(
-            x, lam, A, Xs)
+        g, pN, pT = self._gap_and_tractions(s, x, lam, A, geo, cp, Xs)
         values, aux = {"gap": g, "p_N": pN, "p_T": pT}, {"area": A}
         if self.dim == 3:
-            def frame(xs, hs, X0):
-                n = obstacle(X0).normal(xs, geo)
-                e = hs[1] if hs is not None else jnp.eye(3)[jnp.argmin(jnp.abs(X0[1]))]
-                return (n,) + tangent_basis(n, e)
-            aux["normal"], aux["t1"], aux["t2"] = jax.vmap(frame, (0, hax, 0))(x, h, Xs)
+            aux["normal"], aux["t1"], aux["t2"] = self._frames_at(s, x, geo, Xs, h)
             values["traction"] = self._forces_at(*inputs) / A[:, None]
-        if meth.status is not None:
-            aux["status"] = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
-                xs, ls, a, geo, obstacle(X0), cp, hs))(x, lam, A, h, Xs)
-            aux["slip"] = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, obstacle(X0), hs))(x, h, Xs)
+        if s.contact.method.status is not None:
+            aux["status"], aux["slip"] = self._status_at(*inputs)
         return values, aux
 
     def contact_status(self, w, params, t, state_n, surface: int = 0):
         """Pure function: per-node (status code, slip increment g_T) of a friction
         surface (codes of :mod:`signorini.contact.friction`); state_n = state
         *before* the increment of w."""
-        s, x, lam, A, geo, cp, Xs, h = self._surface_state(w, params, t, state_n, surface)
-        meth = s.contact.method
-        st = jax.vmap(lambda xs, ls, a, hs, X0: meth.status(
-            xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
-        gt = jax.vmap(lambda xs, hs, X0: meth.slip(xs, geo, self.obstacle_at(s, X0), hs))(x, h, Xs)
-        return st, gt
+        return self._status_at(*self._surface_state(w, params, t, state_n, surface))
 
     def switch_fields(self, w, params, t, state_n=None):
         """Pure function: what decides the branches of the non-smooth laws at w
@@ -124,13 +128,13 @@ class ModelFields:
         for i, s in enumerate(self.surfaces):
             x, lam, A, geo, cp, Xs = self.contact_inputs(s, X, u, lams[i], params, t)
             meth = s.contact.method
-            f = self.contact_fields(w, params, t, i)
+            g, pN, _ = self._gap_and_tractions(s, x, lam, A, geo, cp, Xs)
             margin = jnp.full(s.nodes.size, jnp.inf)
             if meth.stick_margin is not None:
                 h = self._node_history(i, state_n)
                 margin = jax.vmap(lambda xs, ls, a, hs, X0, s=s, meth=meth, geo=geo, cp=cp: meth.stick_margin(
                     xs, ls, a, geo, self.obstacle_at(s, X0), cp, hs))(x, lam, A, h, Xs)
-            out.append({"gap": f["gap"], "p_N": f["p_N"], "stick_margin": margin})
+            out.append({"gap": g, "p_N": pN, "stick_margin": margin})
         ratio = None
         if self.n_state and self.material.yield_ratio is not None:
             mp = self.material.values(params)
