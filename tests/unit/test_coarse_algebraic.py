@@ -50,7 +50,7 @@ def sol_dofs(sol) -> int:
     return int(sol.model.n_dof)
 
 
-def test_auto_start_only_for_large_3d_obstacle_problems():
+def test_auto_start_only_for_large_3d_obstacle_problems_and_frictionless_pairs():
     small = hertz3d_problem(n_fine=4)
     sol = sg.solve(small)
     assert sol.coarse_start is None  # below AUTO_NODES: from rest
@@ -58,6 +58,12 @@ def test_auto_start_only_for_large_3d_obstacle_problems():
     assert not ca.wanted(m, NewtonOptions()) and ca.wanted(m, NewtonOptions(start="coarse"))
     assert not ca.wanted(m, NewtonOptions(start="rest"))
     assert m.n_nodes < ca.AUTO_NODES
+    from signorini.algorithms.stepping import model_for
+    from signorini.problems.spheres import spheres_problem
+    pair = model_for(spheres_problem(n_fine=12))  # 3-D, frictionless pair, >= AUTO_NODES
+    assert pair.n_nodes >= ca.AUTO_NODES and ca.wanted(pair, NewtonOptions())
+    rough = model_for(spheres_problem({"mu": 0.3}, n_fine=12))  # a frictional pair: not by auto
+    assert not ca.wanted(rough, NewtonOptions()) and ca.wanted(rough, NewtonOptions(start="coarse"))
 
 
 def test_a_coarse_problem_that_fails_is_abandoned(monkeypatch):
@@ -71,3 +77,41 @@ def test_a_coarse_problem_that_fails_is_abandoned(monkeypatch):
     assert sol.newton_iterations == ref.newton_iterations
     assert np.abs(sol.increments[0].w - ref.increments[0].w).max() <= 1e-12 * np.abs(
         ref.increments[0].w).max()
+
+
+def test_a_frictionless_pair_starts_at_its_contact_zone():
+    """Two elastic spheres (a mortar pair, 13.5k DOFs, one increment). The coarse
+    space's aggregates follow the bodies' own graph: a pair's contact couplings,
+    stored also where the bodies are apart, joined aggregates across the two
+    bodies, whose relative motion the coarse problem must find (it then found 6
+    closed nodes of the zone). Its tangent P^T (K + C) P holds the couplings between
+    coarse functions on either side, which no single node carries (the zone stage
+    converged linearly without them: 36 iterations here, 40 and abandoned at n_fine
+    12). With both, the coarse stages converge in a few iterations each and the fine
+    Newton needs 1 (8 from rest), to the state from rest."""
+    from signorini.problems.spheres import spheres_problem
+
+    pb = spheres_problem(n_fine=8)
+    sol = sg.solve(pb, steps=1, options=NewtonOptions(start="coarse"))
+    info = sol.coarse_start
+    assert info["converged"] and "zone_abandoned" not in info, info
+    assert info["iterations"] <= 8 and info["zone_iterations"] <= 8, info
+    ref = sg.solve(pb, steps=1, options=NewtonOptions(start="rest"))
+    assert sol.newton_iterations[0] <= 2 < 6 <= ref.newton_iterations[0]
+    w, w_ref = sol.increments[0].w, ref.increments[0].w
+    assert np.abs(w - w_ref).max() <= 1e-12 * np.abs(w_ref).max()
+
+
+def test_a_coarse_tangent_outside_its_pattern_abandons_the_stage():
+    """An entry of a coarse tangent outside the pattern analysed for it abandons
+    the stage with that reason (it is never dropped or written elsewhere)."""
+    import scipy.sparse as sp
+
+    P = sp.identity(3, format="csr")
+    bulk = sp.diags([1.0, 2.0, 3.0], format="csr")
+    no_contact = (np.array([], dtype=int), sp.csr_matrix((0, 0)))
+    stage = ca._Stage(P, bulk, no_contact, solver=None)
+    inside = stage._on_template(sp.diags([4.0, 5.0, 6.0]))
+    assert np.allclose(inside.toarray(), np.diag([4.0, 5.0, 6.0]))
+    with pytest.raises(RuntimeError, match="outside the coarse pattern"):
+        stage._on_template(sp.csr_matrix(np.array([[1.0, 0, 0], [0, 1, 0], [0.5, 0, 1]])))

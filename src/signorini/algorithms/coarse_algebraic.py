@@ -44,8 +44,8 @@ from ..linsolve.multigrid import _lambda_max
 
 log = logging.getLogger("signorini")
 
-#: ``start="auto"`` builds the start from this many nodes on (3-D, rigid obstacles):
-#: below, Newton's iterations from rest cost less than the coarse problem
+#: ``start="auto"`` builds the start from this many nodes on (3-D, rigid obstacles and
+#: frictionless pairs): below, Newton's iterations from rest cost less than the coarse problem
 AUTO_NODES = 5_000
 #: Newton iterations of the coarse problem
 MAX_ITERATIONS = 40
@@ -144,8 +144,11 @@ def wanted(model, options) -> bool:
         return False
     if options.start == "coarse":
         return True
+    # (a frictional pair's zone stage, its multipliers held at zero, does not converge
+    # within the budget: measured on the spheres, docs/theory.md §10.3)
     return (model.dim == 3 and model.n_nodes >= AUTO_NODES
-            and all(getattr(s, "patches", None) is None for s in model.surfaces))
+            and all(getattr(s, "patches", None) is None or s.contact.method.status is None
+                    for s in model.surfaces))
 
 
 class AlgebraicStart:
@@ -160,12 +163,16 @@ class AlgebraicStart:
         self._solver = get_solver("auto")  # its analysis of the coarse pattern is kept
         self.info: dict = {}
 
-    def _space(self, K_uu, n_u):
+    def _space(self, K_uu, bulk, n_u):
+        """The coarse space: aggregates of the nodes by the bulk's graph (a pair's
+        contact couplings, stored also where the bodies are apart, would join
+        aggregates across the two bodies, whose relative motion the coarse problem
+        is there to find), smoothed with the whole tangent."""
         m = self.model
         u_dofs = np.asarray(m.free[:n_u])
         u_nodes, u_comp = np.divmod(u_dofs, m.dim)
         X = np.asarray(m.reference_nodes, dtype=float)
-        G = self._graph = _node_graph(K_uu, u_nodes, m.n_nodes)
+        G = self._graph = _node_graph(bulk, u_nodes, m.n_nodes)
         agg = aggregates(G, X)
         P0 = tentative(agg, X, u_nodes, u_comp, m.dim)
         return _smoothed(P0, K_uu)
@@ -177,6 +184,16 @@ class AlgebraicStart:
             self._contact_pattern = SparsityPattern(m.block_dofs()[1:], m.n_dof, m.free)
         return self._contact_pattern.assemble(blocks[1:])[:n_u, :n_u].tocsr()
 
+    def _coupling(self, n_u):
+        """(rows, S): the displacement rows a contact block can reach and the 0/1
+        pattern (rows x rows) of the couplings between them: a node with itself
+        (rigid obstacles), a slave node with its patch's master nodes (pairs)."""
+        pat = self._contact_pattern
+        S = sp.csr_matrix((np.ones(pat.nnz), pat.indices, pat.indptr), shape=(pat.n, pat.n))
+        S = S[:n_u, :n_u].tocsr()
+        rows = np.flatnonzero(np.diff(S.indptr))
+        return rows, S[rows][:, rows].tocsr()
+
     def __call__(self, w0, params, t, state_n):
         """(w, info): the fine start w (a copy of w0 with the coarse displacements
         added), or (None, info) where the coarse problem was abandoned."""
@@ -186,12 +203,12 @@ class AlgebraicStart:
         n_u = int(np.sum(free < m.dim * m.n_nodes))
         _, blocks = m.local_tangents(w0, params, t, state_n)
         K0 = m.pattern.assemble(blocks).tocsr()[:n_u, :n_u].tocsr()
-        if self._P is None:
-            self._P = self._space(K0, n_u)
         C0 = self._contact_uu(blocks, n_u)
         bulk = (K0 - C0).tocsr()  # the tangent less its contact part (kept: chord)
-        candidates = np.flatnonzero(np.diff(self._contact_pattern.indptr)[:n_u])
-        stage = _Stage(self._P, bulk, candidates, self._solver)
+        if self._P is None:
+            self._P = self._space(K0, bulk, n_u)
+        coupling = self._coupling(n_u)
+        stage = _Stage(self._P, bulk, coupling, self._solver)
         info = {"coarse_unknowns": int(self._P.shape[1]), "iterations": 0}
         uc, w = stage.solve(m, w0, np.zeros(self._P.shape[1]), params, t, state_n, n_u,
                             self._contact_uu, info)
@@ -201,7 +218,7 @@ class AlgebraicStart:
             P2, map2 = self._refined(w, w0, n_u, params, t, state_n)
             if P2 is not None:
                 info2 = {"iterations": 0}
-                stage2 = _Stage(P2, bulk, candidates, self._solver)
+                stage2 = _Stage(P2, bulk, coupling, self._solver)
                 uc2, w2 = stage2.solve(m, w0, map2(uc), params, t, state_n, n_u,
                                        self._contact_uu, info2)
                 info["zone_nodes"] = int(self._zone_nodes)
@@ -280,14 +297,16 @@ class _Stage:
     tangent P^T (K_bulk + C_k) P with the bulk kept from the start and the contact
     rows' part C_k of each iterate."""
 
-    def __init__(self, P, bulk, candidates, solver):
+    def __init__(self, P, bulk, coupling, solver):
         self.P, self.PT = P, P.T.tocsr()
         self.bulk = (self.PT @ (bulk @ P)).tocsr()
         self.solver = solver
         # one pattern for every iterate (analysed once by the solver): the bulk's and
-        # that of every contact row's projection
-        Ps = P[candidates]
-        T = (abs(self.bulk) + abs(Ps.T) @ abs(Ps)).tocsr()
+        # the projection of every contact coupling (a pair's couples a slave node with
+        # master nodes: coarse functions on either side, not only on one node)
+        rows, S = coupling
+        Ps = abs(P[rows])
+        T = (abs(self.bulk) + Ps.T @ (S @ Ps)).tocsr()
         T.sort_indices()
         n = T.shape[0]
         self.T = T
@@ -297,8 +316,10 @@ class _Stage:
         M = M.tocsr()
         M.sum_duplicates()
         n = M.shape[0]
-        pos = np.searchsorted(self.keys, np.repeat(np.arange(n, dtype=np.int64),
-                                                   np.diff(M.indptr)) * n + M.indices)
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(M.indptr)) * n + M.indices
+        pos = np.minimum(np.searchsorted(self.keys, keys), self.keys.size - 1)
+        if not np.array_equal(self.keys[pos], keys):  # the stage is abandoned, not wrong
+            raise RuntimeError("a coarse tangent entry outside the coarse pattern")
         data = np.zeros(self.T.nnz)
         data[pos] = M.data
         return sp.csr_matrix((data, self.T.indices, self.T.indptr), shape=self.T.shape)
