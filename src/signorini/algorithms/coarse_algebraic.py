@@ -292,6 +292,10 @@ class AlgebraicStart:
         return P2, map2
 
 
+class OutsidePattern(RuntimeError):
+    """A coarse tangent has an entry outside the pattern analysed for it."""
+
+
 class _Stage:
     """Newton on the coarse problem of one space P: P^T R_u(w0 + P u_c) = 0, its
     tangent P^T (K_bulk + C_k) P with the bulk kept from the start and the contact
@@ -317,9 +321,10 @@ class _Stage:
         M.sum_duplicates()
         n = M.shape[0]
         keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(M.indptr)) * n + M.indices
-        pos = np.minimum(np.searchsorted(self.keys, keys), self.keys.size - 1)
-        if not np.array_equal(self.keys[pos], keys):  # the stage is abandoned, not wrong
-            raise RuntimeError("a coarse tangent entry outside the coarse pattern")
+        pos = np.minimum(np.searchsorted(self.keys, keys), max(self.keys.size - 1, 0))
+        if keys.size and (not self.keys.size or not np.array_equal(self.keys[pos], keys)):
+            # the stage is abandoned, never solved with entries dropped or misplaced
+            raise OutsidePattern("a coarse tangent entry outside the coarse pattern")
         data = np.zeros(self.T.nnz)
         data[pos] = M.data
         return sp.csr_matrix((data, self.T.indices, self.T.indptr), shape=self.T.shape)
@@ -349,7 +354,11 @@ class _Stage:
             C = contact_uu(blocks, n_u)
             rows = np.flatnonzero(np.diff(C.indptr))
             Ps = P[rows]
-            Kc = self._on_template(self.bulk + (Ps.T @ (C[rows][:, rows] @ Ps)))
+            try:
+                Kc = self._on_template(self.bulk + (Ps.T @ (C[rows][:, rows] @ Ps)))
+            except OutsidePattern as e:
+                info["abandoned"] = str(e)
+                return None, None
             try:
                 duc = self.solver.factorize(Kc).solve(-rc)
             except (SingularTangentError, RuntimeError) as e:
