@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jax import jax, jnp
+from ..fem.mesh3d import rows_once
 from . import clip3d
 from .mortar import check_separate, default_search
 
@@ -489,9 +490,7 @@ def boundary_edges(faces: np.ndarray) -> np.ndarray:
     edges = [np.stack([f[nv == n][:, a], f[nv == n][:, (a + 1) % n]], axis=1)
              for n in (3, 4) for a in range(n) if (nv == n).any()]
     edges = np.concatenate(edges)
-    key = np.sort(edges, axis=1)
-    _, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return edges[count[inv.ravel()] == 1]
+    return edges[rows_once(np.sort(edges, axis=1))]
 
 
 def boundary_switches(x: np.ndarray, patches: Patches3D, master_faces: np.ndarray,

@@ -141,16 +141,17 @@ class Mesh3D(Cells):
         out = []
         for cell, idx in self.groups():
             f = self.cells[idx][:, cell.faces].reshape(-1, cell.faces.shape[1])
-            out.append(f[_once(np.sort(f, axis=1))])
+            out.append(f[rows_once(np.sort(f, axis=1))])
         return out[0] if len(out) == 1 else [f for part in out for f in part]
 
     def face_set(self, name: str) -> np.ndarray:
         return named(self.face_sets, "face", name)
 
 
-def _once(rows: np.ndarray) -> np.ndarray:
+def rows_once(rows: np.ndarray) -> np.ndarray:
     """Mask of the rows of an integer array (n, k) that occur once (``np.unique`` over
-    rows sorts a row view, several times slower than this lexicographic sort)."""
+    rows sorts a row view, several times slower than this lexicographic sort): with
+    each face's or edge's nodes sorted, the boundary of a set of cells or faces."""
     order = np.lexsort(rows.T[::-1])
     s = rows[order]
     first = np.ones(len(s), dtype=bool)
