@@ -14,12 +14,15 @@ from __future__ import annotations
 import contextlib
 import logging
 import sys
+import threading
 from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 log = logging.getLogger("signorini")
 
 _BARS = {"on": False}
+#: the functions told of each converged increment of this thread's solves (:func:`on_increment`)
+_LISTENERS = threading.local()
 
 
 def show_bars(on: bool = True) -> None:
@@ -48,6 +51,22 @@ def bars(on: bool = True):
             yield
     finally:
         show_bars(old)
+
+
+@contextlib.contextmanager
+def on_increment(fn):
+    """While in the block, call ``fn(label, n, t)`` after each increment a solve of
+    this thread converges: the solve's label, the increments it has converged so
+    far (the new one is the solution's last) and the load factor reached. What
+    ``fn`` raises goes up through the solve (an interrupt as anywhere else)."""
+    fns = getattr(_LISTENERS, "fns", None)
+    if fns is None:
+        fns = _LISTENERS.fns = []
+    fns.append(fn)
+    try:
+        yield
+    finally:
+        fns.remove(fn)
 
 
 class SolveProgress:
@@ -83,6 +102,8 @@ class SolveProgress:
             self._bar.unit = (f"t = {t:.3f}, increment {self.n_inc} (nominal {self.steps}), "
                               f"{steplog.iterations} Newton it, |R| {res:.1e}")
             self._bar.refresh()
+        for fn in tuple(getattr(_LISTENERS, "fns", ())):
+            fn(self.label, self.n_inc, t)
 
     def cut(self, t: float, reason: str, dt: float) -> None:
         log.info("[%s] increment to t = %.4g failed (%s); cutting the step to %.3g", self.label, t,

@@ -133,3 +133,50 @@ def test_vtu_writer_rejects_an_unknown_cell_kind(tmp_path):
     with pytest.raises(InputError, match="wedge"):
         vtu.write_unstructured(tmp_path / "w.vtu", np.zeros((6, 3)), "wedge",
                                np.arange(6)[None], {}, {})
+
+
+def test_a_series_written_as_the_solve_converges(tmp_path, monkeypatch):
+    """files.Series: each increment written as the solve converges it (told by
+    progress.on_increment), the .pvd listing the increments so far; complete()
+    computes none of them again, writes the files write_pvd writes, and writes the
+    last increment again once a shape gradient is attached."""
+    import xml.etree.ElementTree as ET
+
+    from signorini import progress
+    from signorini.algorithms.stepping import last_started
+
+    m = sg.rectangle(np.linspace(0, 1, 4), np.linspace(0, 1, 4))
+    pb = sg.Problem(m, sg.LinearElastic("E", 0.3), {"E": 100.0, "q": 2.0},
+                    fixed=(sg.Fixed("bottom", 1), sg.Fixed("left", 0)),
+                    loads=(sg.Pressure("top", "q"),))
+    (tmp_path / "a").mkdir()
+    series = files.Series(tmp_path / "a" / "run.pvd")
+    listed = []
+
+    def converged(label, n, t):
+        assert label == "base" and t == pytest.approx(n / 3)
+        series.add(last_started("base"))
+        ds = ET.parse(series.path).getroot().findall("./Collection/DataSet")
+        listed.append([d.get("file") for d in ds])
+
+    with progress.on_increment(converged):
+        sol = sg.solve(pb, steps=3, wrt=["q"], label="base")
+    sg.solve(pb, steps=2, label="other")  # outside the block: not told
+    assert listed == [["run_0001.vtu"], ["run_0001.vtu", "run_0002.vtu"],
+                      ["run_0001.vtu", "run_0002.vtu", "run_0003.vtu"]]
+    calls = []
+    real = files._fields
+    monkeypatch.setattr(files, "_fields", lambda s, i: calls.append(i) or real(s, i))
+    assert series.complete(sol) == series.path and calls == []
+    whole = files.write_pvd(sol, tmp_path / "run.pvd")
+    assert whole.read_text() == series.path.read_text()
+    for k in (1, 2, 3):
+        a, b = (meshio.read(p / f"run_{k:04d}.vtu") for p in (tmp_path / "a", tmp_path))
+        assert sorted(a.point_data) == sorted(b.point_data)
+        for key in a.point_data:
+            assert np.array_equal(a.point_data[key], b.point_data[key]), key
+    calls.clear()
+    sol.shape_gradient = np.ones((m.n_nodes, 2))
+    series.complete(sol)
+    assert calls == [2]
+    assert "adjoint_shape_gradient" in meshio.read(tmp_path / "a" / "run_0003.vtu").point_data

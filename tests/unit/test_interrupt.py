@@ -179,3 +179,69 @@ def test_sigterm_is_honoured_within_seconds_in_every_command(tmp_path, name, del
         assert time.monotonic() - t0 < 30, err  # seconds, not the rest of the run
         if (out / "summary.json").exists():
             assert json.loads((out / "summary.json").read_text())["status"] == "interrupted"
+
+
+def test_a_streamed_series_leaves_an_interrupt_only_what_the_signal_cut_short(tmp_path,
+                                                                               monkeypatch):
+    """runner.stream_series (a run under mpiexec on several ranks, whose launcher
+    kills an interrupted rank a second after its SIGTERM): the base solve writes
+    each increment into its series as it converges; an interrupt's report then
+    computes only the increment whose files the signal cut short, and the end of a
+    run none."""
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+
+    import signorini as sg
+    from signorini import progress
+    from signorini.app import runner
+    from signorini.errors import Interrupted
+    from signorini.post import files
+
+    m = sg.rectangle(np.linspace(0, 1, 4), np.linspace(0, 1, 4))
+    pb = sg.Problem(m, sg.LinearElastic("E", 0.3), {"E": 100.0, "q": 2.0},
+                    fixed=(sg.Fixed("bottom", 1), sg.Fixed("left", 0)),
+                    loads=(sg.Pressure("top", "q"),))
+    computed = []
+    real = files._fields
+    monkeypatch.setattr(files, "_fields", lambda s, i: computed.append(i) or real(s, i))
+
+    def signal_at_2(label, n, t):  # told before the runner's writer: increment 2 is not written
+        if n == 2:
+            raise Interrupted(signal.SIGTERM)
+
+    runner.stream_series(True)
+    try:
+        out = runner.prepare_output(tmp_path / "cut")
+        with progress.on_increment(signal_at_2), pytest.raises(Interrupted):
+            runner.solve_or_report(out, "run", pb, {}, steps=4, wrt=["q"])
+        assert computed == [0]
+        assert "kept 2 converged increments (run.pvd)" in runner.report_interrupt(signal.SIGTERM)
+        assert computed == [0, 1]
+        s = json.loads((out / "summary.json").read_text())
+        assert s["status"] == "interrupted" and s["converged_increments"] == 2
+        assert s["files"] == ["run.pvd"]
+        ds = ET.parse(out / "run.pvd").getroot().findall("./Collection/DataSet")
+        assert [d.get("file") for d in ds] == ["run_0001.vtu", "run_0002.vtu"]
+        assert sorted(p.name for p in out.iterdir()) == ["run.pvd", "run_0001.vtu",
+                                                         "run_0002.vtu", "summary.json"]
+        # a whole run: its series is written as it converges, and not again at the end
+        computed.clear()
+        out = runner.prepare_output(tmp_path / "whole")
+        sol = runner.solve_or_report(out, "run", pb, {}, steps=3, wrt=["q"])
+        assert computed == [0, 1, 2]
+        runner.write_series(sol, out / "run.pvd")
+        assert computed == [0, 1, 2]
+        # a series the command does not write is not streamed
+        out = runner.prepare_output(tmp_path / "none")
+        runner.solve_or_report(out, "run", pb, {}, series=False, steps=3)
+        assert not list(out.iterdir())
+    finally:
+        runner.stream_series(False)
+    # a serial run writes its series at the end
+    computed.clear()
+    out = runner.prepare_output(tmp_path / "serial")
+    sol = runner.solve_or_report(out, "run", pb, {}, steps=3)
+    assert computed == []
+    runner.write_series(sol, out / "run.pvd")
+    assert computed == [0, 1, 2]

@@ -5,6 +5,7 @@ converged increments written even when a later one fails.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import time
@@ -12,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _programs, timing
+from .. import _programs, progress, timing
 from ..contact.area import nodal_normals
 from ..post import files as io
 from ..post import helper
@@ -30,6 +31,9 @@ log = logging.getLogger("signorini")
 #: (:func:`report_interrupt`): its output directory, the stem and summary
 #: entries of its base solve, and the base solution (or its converged part)
 _RUN: dict = {}
+#: whether a run's base solve writes its .pvd series as its increments converge
+#: (:func:`stream_series`)
+_STREAM = {"on": False}
 
 
 def prepare_output(out) -> Path:
@@ -184,16 +188,20 @@ def use_solver(solver="auto"):
     return lin
 
 
-def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
+def solve_or_report(out: Path, stem: str, problem, extra: dict, series: bool = True,
+                    **solve_kwargs):
     """``signorini.solve(problem, label="base", **solve_kwargs)``; on a Newton failure
     write the converged increments (``<stem>.pvd`` series, last contact table) and a
-    ``failed`` summary.json with ``extra`` before re-raising."""
+    ``failed`` summary.json with ``extra`` before re-raising. ``series``: whether
+    the command writes the ``<stem>.pvd`` series of the solution (then written as
+    the increments converge where :func:`stream_series` asks for it)."""
     solver = solve_kwargs.get("solver", "auto")
     extra = {**extra, "solver": getattr(solver, "name", solver)}
     keep_for_interrupt(stem=stem, extra=extra)
     timing.mark("solve")
     try:
-        solution = solve(problem, label="base", **solve_kwargs)
+        with series_as_converged(out / f"{stem}.pvd", on=series):
+            solution = solve(problem, label="base", **solve_kwargs)
     except KeyboardInterrupt as e:
         # the load path's converged increments (also when the signal came as it returned)
         keep_for_interrupt(solution=getattr(e, "partial", None) or last_started("base"))
@@ -201,11 +209,58 @@ def solve_or_report(out: Path, stem: str, problem, extra: dict, **solve_kwargs):
     except ConvergenceError as e:
         timing.mark("output")
         if e.partial is not None and e.partial.increments:
-            io.write_pvd(e.partial, out / f"{stem}.pvd")
+            write_series(e.partial, out / f"{stem}.pvd")
         write_partial(out, e.partial, stem, str(e), extra)
         raise
     keep_for_interrupt(solution=solution)
     return solution
+
+
+def stream_series(on: bool = True) -> None:
+    """From now on (``on``) a run's base solve writes its ``.pvd`` series as its
+    increments converge (:func:`series_as_converged`): a run under ``mpiexec`` on
+    several ranks, whose launcher kills an interrupted rank one second after its
+    SIGTERM, too short to compute the series' fields then (docs/parallel.md)."""
+    _STREAM["on"] = bool(on)
+
+
+@contextlib.contextmanager
+def series_as_converged(path: Path, label: str = "base", on: bool = True):
+    """While in the block, if :func:`stream_series` asked for it and ``on``: each
+    increment the solve ``label`` converges is written at once into the series
+    ``path`` (its VTU files and the ``.pvd`` of the increments so far), so that an
+    interrupt has nothing left to write but summary.json; :func:`write_series`
+    (the end of the run, a failure, an interrupt's report) writes only the rest. A
+    write that fails is logged and leaves the rest of the series to the end."""
+    if not (on and _STREAM["on"]):
+        yield
+        return
+    series = _RUN["series"] = io.Series(path)
+
+    def converged(name, n, t):
+        sol = last_started(label)
+        if name != label or sol is None or len(sol.increments) != n or "series_error" in _RUN:
+            return
+        try:
+            with timing.phase("output"):
+                series.add(sol)
+        except Exception as e:  # noqa: BLE001 - the solve goes on; the end writes the series
+            _RUN["series_error"] = str(e)
+            log.warning("warning: the series %s is written at the end of the run: increment %d "
+                        "could not be written as it converged (%s)", path.name, n, e)
+
+    with progress.on_increment(converged):
+        yield
+
+
+def write_series(solution, path: Path) -> Path:
+    """The ``.pvd`` series of ``solution`` (:func:`signorini.post.files.write_pvd`):
+    only what its base solve has not written as it converged
+    (:func:`series_as_converged`)."""
+    series = _RUN.get("series")
+    if series is not None and series.path == Path(path):
+        return series.complete(solution)
+    return io.write_pvd(solution, path)
 
 
 SIGNALS = {2: "SIGINT", 15: "SIGTERM"}
@@ -247,7 +302,7 @@ def report_interrupt(signum: int) -> str:
     if sol is not None and sol.increments:
         stem = _RUN.get("stem", "result")
         try:
-            summary["files"] = [io.write_pvd(sol, out / f"{stem}.pvd").name]
+            summary["files"] = [write_series(sol, out / f"{stem}.pvd").name]
             write_summary_json(out, summary)
             n = len(sol.increments)
             kept = f"{n} converged increment{'s' * (n != 1)} ({stem}.pvd)"

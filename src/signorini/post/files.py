@@ -184,24 +184,83 @@ def write_pvd(solution, path, increments=None) -> Path:
         except (IndexError, TypeError):
             raise InputError(f"write_pvd: increment {i!r} does not exist; the solution has {n} "
                              "converged increment(s)") from None
+    for i in idx:
+        _write_increment(solution, path, i)
+    return _write_collection(solution, path, idx)
+
+
+def _series_files(solution, path: Path, i: int) -> list[tuple[str | None, Path]]:
+    """(body, VTU file) of increment ``i`` of the series ``path``: one file (body
+    None), or one per body of a mesh of several."""
+    parts_ = bodies(solution)
+    out = []
+    for body in [p[0] for p in parts_] if len(parts_) > 1 else [None]:
+        stem = path.stem if body is None else f"{path.stem}_{body}"
+        out.append((body, path.with_name(f"{stem}_{i + 1:04d}.vtu")))
+    return out
+
+
+def _write_increment(solution, path: Path, i: int) -> None:
+    """The VTU files of increment ``i`` of the series ``path``."""
+    fields = _fields(solution, i)  # once per increment, whatever the number of bodies
+    for body, vtu in _series_files(solution, path, i):
+        _write_part(vtu, fields, bodies(solution), body)
+
+
+def _write_collection(solution, path: Path, idx) -> Path:
+    """The ``.pvd`` file of the series ``path`` listing increments ``idx``."""
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
              "  <Collection>"]
-    parts_ = bodies(solution)
-    names = [p[0] for p in parts_] if len(parts_) > 1 else [None]
     for i in idx:
         t = float(solution.increments[i].t)
-        fields = _fields(solution, i)  # once per increment, whatever the number of bodies
-        for part, body in enumerate(names):
-            stem = path.stem if body is None else f"{path.stem}_{body}"
-            vtu = path.with_name(f"{stem}_{i + 1:04d}.vtu")
-            _write_part(vtu, fields, parts_, body)
+        for part, (_, vtu) in enumerate(_series_files(solution, path, i)):
             lines.append(f'    <DataSet timestep="{t!r}" group="" part="{part}" '
                          f'file={quoteattr(vtu.name)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
     with atomic(path) as tmp:
         tmp.write_text("\n".join(lines))
     return path
+
+
+class Series:
+    """A ParaView series (:func:`write_pvd`) written while a solve converges its
+    increments: :meth:`add` writes one increment's VTU files and the ``.pvd``
+    listing the increments written so far, :meth:`complete` those not yet written
+    and the ``.pvd`` of them all. The files are those of :func:`write_pvd` of the
+    whole solution; the last increment's are written again once an adjoint shape
+    gradient is attached to the solution (:func:`write_vtu`)."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        #: increment index -> (the Increment, the shape gradient) its files show
+        self._written: dict[int, tuple] = {}
+
+    def _shown(self, solution, i: int) -> tuple:
+        last = i == len(solution.increments) - 1
+        return solution.increments[i], getattr(solution, "shape_gradient", None) if last else None
+
+    def _write(self, solution, i: int) -> None:
+        _write_increment(solution, self.path, i)
+        self._written[i] = self._shown(solution, i)
+
+    def add(self, solution, i: int = -1) -> Path:
+        """Write increment ``i`` (default: the last) and the ``.pvd`` of the
+        increments up to it."""
+        i = range(len(solution.increments))[i]
+        self._write(solution, i)
+        return _write_collection(solution, self.path, range(i + 1))
+
+    def complete(self, solution) -> Path:
+        """Write the increments of ``solution`` not yet written from the same
+        increment, and the ``.pvd`` of them all; the path of the ``.pvd``."""
+        n = len(solution.increments)
+        for i in range(n):
+            done = self._written.get(i)
+            now = self._shown(solution, i)
+            if done is None or done[0] is not now[0] or done[1] is not now[1]:
+                self._write(solution, i)
+        return _write_collection(solution, self.path, range(n))
 
 
 def write_csv(path, columns: dict) -> Path:

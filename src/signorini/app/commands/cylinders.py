@@ -23,7 +23,7 @@ from ..options import (
     with_defaults)
 from ..runner import (
     Timer, master_tractions, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
-    summary_header, use_solver, write_summary)
+    summary_header, use_solver, write_series, write_summary)
 
 NAME = "cylinders"
 RTOL = 1e-10
@@ -127,8 +127,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
         guide, coarse = hertz.coarse_start_for(
             pb, lambda r, n: cylinders_problem(params, refine=r, n_fine=n, ratio=ratio),
             refine, n_fine, steps=steps, options=options, solver=solver)
-    sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          wrt=sensitivities, options=options, solver=solver, start=guide)
+    sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, series=steps > 1,
+                          steps=steps, wrt=sensitivities, options=options, solver=solver, start=guide)
     warn_failed_levels(sol, coarse)
     t_solve = clock() - t0
     timing.mark("output")
@@ -138,7 +138,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = 24, r
     io.write_csv(out / "contact_upper.csv", up)
     io.write_vtu(sol, out / "cylinders.vtu")
     if steps > 1:
-        io.write_pvd(sol, out / "cylinders.pvd")
+        write_series(sol, out / "cylinders.pvd")
     closed = c["p_N"] > 0
     b_fe = 0.5 * float(c["x"][closed].max() - c["x"][closed].min()) if closed.any() else 0.0
     p0_fe = float(c["p_N"].max())

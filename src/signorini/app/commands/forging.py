@@ -9,7 +9,7 @@ import numpy as np
 from ... import timing
 from ...algorithms.newton import NewtonOptions
 from ...errors import InputError
-from ...post import files as io, plots
+from ...post import plots
 from ...problems import forging
 from ...problems.forging import (
     DEFAULTS, H0, TABLE1, body_volume, die_force, forging_problem, lateral_nodes, objective, options)
@@ -18,7 +18,7 @@ from ..options import (
     parse_sets, path_options, print_adjoint, print_ddm_fd, solver_options, with_defaults)
 from ..runner import (
     Timer, adjoint_report, fd_table, newton_log, prepare_output, solve_or_report, solver_entries,
-    summary_header, use_solver, write_summary)
+    summary_header, use_solver, write_series, write_summary)
 
 NAME = "forging"
 
@@ -126,7 +126,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     x = sol.current()
     vol0, vol1 = body_volume(model, X), body_volume(model, x)
     _figures(out, sol, X, x, v, F, force)  # the output helper draws them and writes the VTU
-    io.write_pvd(sol, out / "forging.pvd")  # files meanwhile, beside the check
+    write_series(sol, out / "forging.pvd")  # files meanwhile, beside the check
 
     timing.mark("sensitivities")
     fd, rel = fd_table(out / "table1.csv", pb, F_fn, ("forging-objective",), names, dF, fd_check,

@@ -18,7 +18,7 @@ from ..options import (
     print_adjoint, print_ddm_fd, solver_options, with_defaults)
 from ..runner import (
     Timer, adjoint_report, fd_table, newton_log, prepare_output, solve_or_report, solver_entries,
-    summary_header, use_solver, write_summary)
+    summary_header, use_solver, write_series, write_summary)
 
 NAME = "forging3d"
 
@@ -124,7 +124,7 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (6, 6), step
     plots.curves(out / "force.png", [{"x": stroke, "y": force, "label": "die force (one eighth)"}],
                  xlabel="die stroke [h0]", ylabel="axial force [E h0²]",
                  title="3-D forging: die force against stroke")
-    io.write_pvd(sol, out / "forging3d.pvd")
+    write_series(sol, out / "forging3d.pvd")
 
     if fd_check:
         timing.mark("sensitivities")

@@ -20,7 +20,7 @@ from ... import timing
 from .. import validity
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
-    use_solver, write_summary)
+    use_solver, write_series, write_summary)
 
 NAME = "hertz"
 #: Newton's default tolerance of this command (--rtol)
@@ -111,8 +111,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, method: str = "al",
             pb, lambda r, n: hertz_problem(params, refine=r, n_fine=n, method=method,
                                            finite_strain=finite_strain, size=size, zone=zone),
             refine, 24, steps=steps, options=options, solver=solver)
-    sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          wrt=sensitivities, options=options, solver=solver,
+    sol = solve_or_report(out, "hertz", pb, {"params": v, "mesh": mesh_info}, series=steps > 1,
+                          steps=steps, wrt=sensitivities, options=options, solver=solver,
                           start=guide)
     warn_failed_levels(sol, levels)
     t_solve = clock() - t0
@@ -163,7 +163,7 @@ def _write_fields(out, sol, sensitivities, steps) -> None:
     io.write_csv(out / "contact.csv", cols)
     io.write_vtu(sol, out / "hertz.vtu")
     if steps > 1:
-        io.write_pvd(sol, out / "hertz.pvd")
+        write_series(sol, out / "hertz.pvd")
 
 
 def _ddm_vs_fd(pb, sol, inner, sensitivities, **fd_kwargs) -> dict:

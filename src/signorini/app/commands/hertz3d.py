@@ -25,7 +25,7 @@ from ..options import (
     solver_options, with_defaults)
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
-    summary_header, use_solver, write_summary)
+    summary_header, use_solver, write_series, write_summary)
 
 NAME = "hertz3d"
 #: cells across the fine zone by default: the 3-D quarter model resolves the contact disc
@@ -155,8 +155,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int | None 
             pb, lambda r, n: hertz3d_problem(params, refine=r, n_fine=n, size=size, zone=zone,
                                              axisymmetric=axisymmetric),
             refine, n_fine, steps=steps, options=options, solver=solver, coarsest=COARSEST)
-    sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          wrt=sensitivities, options=options, solver=solver, start=guide)
+    sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, series=steps > 1,
+                          steps=steps, wrt=sensitivities, options=options, solver=solver, start=guide)
     warn_failed_levels(sol, levels)
     t_solve = clock() - t0
     c = _contact_columns(sol, axisymmetric)
@@ -171,7 +171,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int | None 
     io.write_csv(out / "contact.csv", {k: val for k, val in c.items() if k != "line"})
     io.write_vtu(sol, out / "hertz3d.vtu")
     if steps > 1:
-        io.write_pvd(sol, out / "hertz3d.pvd")
+        write_series(sol, out / "hertz3d.pvd")
     zone_info = stick_zone(c["line"], v["mu"]) if friction else None
     adj = None
     if adjoint:

@@ -21,7 +21,7 @@ from ... import timing
 from .. import validity
 from ..runner import (
     Timer, adjoint_report, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries,
-    summary_header, use_solver, write_summary)
+    summary_header, use_solver, write_series, write_summary)
 
 NAME = "hertz-friction"
 
@@ -126,7 +126,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, steps: int = 30, fd
     levels = _levels(out, sol, v, sensitivities)
     invalid = contact_validity(sol, levels[-1]["a"], v["R"], pb, zone * nominal_a0("hertz_friction"))
     _figures(out, levels, v, plots)  # the output helper draws them and writes the VTU files
-    io.write_pvd(sol, out / "hertz_friction.pvd")  # meanwhile, beside the check
+    write_series(sol, out / "hertz_friction.pvd")  # meanwhile, beside the check
 
     ddm_fd = {}
     if fd_check:

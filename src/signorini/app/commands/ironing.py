@@ -26,7 +26,7 @@ from ..options import (
     path_options, positive_int, solver_options, with_defaults)
 from ..runner import (
     Timer, max_rel_diff, newton_log, prepare_output, solve_or_report, solver_entries, summary_header,
-    use_solver, write_summary)
+    use_solver, write_series, write_summary)
 
 RTOL = 1e-10
 SENSITIVITIES = ("mu", "E1", "E2", "R", "d", "s")
@@ -194,7 +194,7 @@ class Ironing:
         timing.mark("output")
         io.write_csv(out / "force.csv", cols)
         io.write_csv(out / "contact.csv", self.contact_columns(sol))
-        io.write_pvd(sol, out / f"{self.NAME}.pvd")
+        write_series(sol, out / f"{self.NAME}.pvd")
         self.figures(out, cols, names, v)
         t_press = self.problem.T_PRESS
         sliding = t > t_press + 0.25 * (1.0 - t_press)  # past the start of the slide

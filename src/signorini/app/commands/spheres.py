@@ -49,6 +49,7 @@ from ..runner import (
     solver_entries,
     summary_header,
     use_solver,
+    write_series,
     write_summary,
 )
 
@@ -154,8 +155,8 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = N_FIN
                  "refine": refine, "n_fine": n_fine, "ratio": ratio}
     t0 = clock()
     timing.mark("solve")
-    sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, steps=steps,
-                          wrt=sensitivities, options=options, solver=solver)
+    sol = solve_or_report(out, NAME, pb, {"params": v, "mesh": mesh_info}, series=steps > 1,
+                          steps=steps, wrt=sensitivities, options=options, solver=solver)
     t_solve = clock() - t0
     timing.mark("output")
     c = _lower(sol, sensitivities)
@@ -164,7 +165,7 @@ def run(out, params: dict | None = None, *, refine: int = 0, n_fine: int = N_FIN
     io.write_csv(out / "contact_upper.csv", up)
     io.write_vtu(sol, out / "spheres.vtu")
     if steps > 1:
-        io.write_pvd(sol, out / "spheres.pvd")
+        write_series(sol, out / "spheres.pvd")
     closed = c["p_N"] > 0
     a_fe = float(c["r"][closed].max()) if closed.any() else 0.0
     p0_fe = float(c["p_N"].max())

@@ -19,7 +19,14 @@ from ...linsolve import check_size
 from ...model.problem import Problem
 from ...post import files as io
 from .. import validity
-from ..runner import keep_for_interrupt, prepare_output, use_solver, write_summary_json
+from ..runner import (
+    keep_for_interrupt,
+    prepare_output,
+    series_as_converged,
+    use_solver,
+    write_series,
+    write_summary_json,
+)
 from .schema import Response, RunConfig, load
 
 __all__ = ["run"]
@@ -131,7 +138,7 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
         io.write_vtu(sol, out / f"{cfg.stem}.vtu")
         files.append(f"{cfg.stem}.vtu")
     if cfg.pvd and (cfg.steps > 1 or len(sol.increments) > 1):
-        io.write_pvd(sol, out / f"{cfg.stem}.pvd")
+        write_series(sol, out / f"{cfg.stem}.pvd")
         files.append(f"{cfg.stem}.pvd")
         files.extend(f"{cfg.stem}_{i + 1:04d}.vtu" for i in range(len(sol.increments)))
 
@@ -190,8 +197,9 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
     timing.mark("solve")
     keep_for_interrupt(stem=cfg.stem, extra=dict(summary, status="interrupted"))
     try:
-        sol = solve(problem, steps=cfg.steps, wrt=list(cfg.sensitivities),
-                    options=cfg.options, solver=solver, label="base")
+        with series_as_converged(out / f"{cfg.stem}.pvd", on=cfg.pvd and cfg.steps > 1):
+            sol = solve(problem, steps=cfg.steps, wrt=list(cfg.sensitivities),
+                        options=cfg.options, solver=solver, label="base")
     except KeyboardInterrupt as e:
         keep_for_interrupt(solution=getattr(e, "partial", None))
         raise
