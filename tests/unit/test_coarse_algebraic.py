@@ -50,7 +50,7 @@ def sol_dofs(sol) -> int:
     return int(sol.model.n_dof)
 
 
-def test_auto_start_only_for_large_3d_obstacle_problems_and_frictionless_pairs():
+def test_auto_start_only_for_large_3d_problems():
     small = hertz3d_problem(n_fine=4)
     sol = sg.solve(small)
     assert sol.coarse_start is None  # below AUTO_NODES: from rest
@@ -62,8 +62,8 @@ def test_auto_start_only_for_large_3d_obstacle_problems_and_frictionless_pairs()
     from signorini.problems.spheres import spheres_problem
     pair = model_for(spheres_problem(n_fine=12))  # 3-D, frictionless pair, >= AUTO_NODES
     assert pair.n_nodes >= ca.AUTO_NODES and ca.wanted(pair, NewtonOptions())
-    rough = model_for(spheres_problem({"mu": 0.3}, n_fine=12))  # a frictional pair: not by auto
-    assert not ca.wanted(rough, NewtonOptions()) and ca.wanted(rough, NewtonOptions(start="coarse"))
+    rough = model_for(spheres_problem({"mu": 0.3}, n_fine=12))  # a frictional pair too
+    assert ca.wanted(rough, NewtonOptions()) and not ca.wanted(rough, NewtonOptions(start="rest"))
 
 
 def test_a_coarse_problem_that_fails_is_abandoned(monkeypatch):
@@ -98,6 +98,26 @@ def test_a_frictionless_pair_starts_at_its_contact_zone():
     assert info["iterations"] <= 8 and info["zone_iterations"] <= 8, info
     ref = sg.solve(pb, steps=1, options=NewtonOptions(start="rest"))
     assert sol.newton_iterations[0] <= 2 and ref.newton_iterations[0] >= 6
+    w, w_ref = sol.increments[0].w, ref.increments[0].w
+    assert np.abs(w - w_ref).max() <= 1e-12 * np.abs(w_ref).max()
+
+
+def test_a_frictional_pair_starts_at_its_contact_zone():
+    """The spheres with friction (mu = 0.3, one increment). With the multipliers
+    held at zero the coarse problem is a penalty friction problem, whose full
+    Newton steps cycled between two iterates in the zone stage (residual 2.30e-3,
+    2.37e-3, 2.30e-3, ... for 40 iterations, abandoned): a step that does not
+    lower the residual is halved, and one halving ends the cycle. The fine Newton
+    then needs at most 4 iterations (10 from rest), to the state from rest."""
+    from signorini.problems.spheres import spheres_problem
+
+    pb = spheres_problem({"mu": 0.3}, n_fine=8)
+    sol = sg.solve(pb, steps=1, options=NewtonOptions(start="coarse"))
+    info = sol.coarse_start
+    assert info["converged"] and "zone_abandoned" not in info, info
+    assert info["zone_halved_steps"] >= 1 and info["zone_iterations"] <= 10, info
+    ref = sg.solve(pb, steps=1, options=NewtonOptions(start="rest"))
+    assert sol.newton_iterations[0] <= 4 and ref.newton_iterations[0] >= 8
     w, w_ref = sol.increments[0].w, ref.increments[0].w
     assert np.abs(w - w_ref).max() <= 1e-12 * np.abs(w_ref).max()
 

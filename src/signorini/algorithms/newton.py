@@ -59,8 +59,8 @@ class NewtonOptions:
         start: the first iterate of the first increment where no other is given
             (no ``start=`` and no coarser mesh): ``"auto"`` (default) starts 3-D
             problems of at least :data:`signorini.algorithms.coarse_algebraic.AUTO_NODES`
-            nodes against rigid obstacles or with frictionless pairs from an
-            algebraic coarse problem
+            nodes with contact (rigid obstacles, pairs, with or without friction)
+            from an algebraic coarse problem
             (docs/theory.md §10.3), ``"coarse"`` does so for every problem with
             contact, ``"rest"`` starts from the undeformed state. Only the start
             changes, not the converged point.
