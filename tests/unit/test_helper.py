@@ -59,6 +59,17 @@ def test_a_dead_helper_leaves_the_work_to_the_process(tmp_path, running):
     assert (tmp_path / "a.vtu").read_text().startswith("<?xml")
 
 
+def test_an_abandoned_helper_ends_at_once_and_later_work_is_done_here(tmp_path, running):
+    """helper.abandon (a rank's private outputs about to be removed): the helper is
+    ended without doing what it still has; later jobs are done in the process."""
+    draw(tmp_path / "dropped.png")
+    helper.abandon()
+    assert running.proc.poll() is not None and helper._HELPER is None
+    vtu(tmp_path / "here.vtu")
+    assert (tmp_path / "here.vtu").read_text().startswith("<?xml")
+    helper.abandon()  # none left: nothing to do
+
+
 def test_a_job_the_helper_cannot_do_raises_here(tmp_path, running):
     draw(tmp_path / "bad.png", y=X[:-1])  # x and y of different lengths
     with pytest.raises(ValueError, match="same first dimension"):

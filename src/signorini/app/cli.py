@@ -138,6 +138,14 @@ def _remove_private() -> None:
         ranks.remove_private()
 
 
+def _remove_others() -> None:
+    """Rank 0 under mpiexec, its interrupt reported: remove the other ranks' private
+    output directories (:func:`signorini.app.ranks.remove_others`)."""
+    ranks = sys.modules.get("signorini.app.ranks")
+    if ranks is not None:
+        ranks.remove_others()
+
+
 #: seconds a signal may wait for the main thread (inside a library call: a
 #: factorisation, a compilation, a large allocation) before the watchdog reports
 #: the interrupt itself and ends the process; and the seconds that report may take
@@ -149,13 +157,21 @@ UNWIND_S = 10.0
 
 
 @contextlib.contextmanager
-def _signals(final: int | None = None, interrupt: bool = True):
+def _signals(final: int | None = None, report: bool = True):
     """SIGTERM raises :class:`~signorini.errors.Interrupted` and SIGINT
     ``Interrupted(2)``, a ``KeyboardInterrupt`` (so a batch scheduler's stop keeps
     the run's work too); with ``final``, while the report of an interrupt is
     written, either signal ends the process at once with that exit status. Only in
     the main thread (signal handlers cannot be set elsewhere: a sweep's points in
-    Dask threads run without).
+    Dask threads run without). Yields the event set when a signal's handler has
+    run (None without handlers).
+
+    Without ``report`` (a rank other than 0 under mpiexec, whose interrupt rank 0
+    reports) SIGINT is left as it is (ignored) and SIGTERM is noted while the run
+    goes on: rank 0 may be waiting for this rank inside a PETSc call, which holds
+    the interpreter's lock (:mod:`signorini.app.ranks`); if the run has not ended
+    :data:`GRACE_S` seconds later, the watchdog removes the rank's private directory
+    and ends the process.
 
     Python runs a signal's handler in the main thread between two bytecodes, so a
     signal that comes during a long library call (PARDISO's factorisation, XLA's
@@ -187,13 +203,14 @@ def _signals(final: int | None = None, interrupt: bool = True):
 
     def stop(signum, frame):
         handled.set()
-        raise Interrupted(signum)
+        if report:
+            raise Interrupted(signum)
 
-    caught = (signal.SIGTERM, signal.SIGINT) if interrupt else (signal.SIGTERM,)
+    caught = (signal.SIGTERM, signal.SIGINT) if report else (signal.SIGTERM,)
     before = {s: signal.signal(s, stop) for s in caught}
-    watch = _Watchdog(handled)
+    watch = _Watchdog(handled, report)
     try:
-        yield
+        yield handled
     finally:
         watch.close()
         for s, h in before.items():
@@ -204,10 +221,10 @@ class _Watchdog:
     """The thread that ends a process whose main thread does not answer a signal
     (:func:`_signals`)."""
 
-    def __init__(self, handled: threading.Event):
+    def __init__(self, handled: threading.Event, report: bool = True):
         import socket  # noqa: PLC0415  (lazy: only a command's run needs it)
 
-        self.handled = handled
+        self.handled, self.report = handled, report
         self.closed = threading.Event()
         self.rsock, self.wsock = socket.socketpair()
         self.wsock.setblocking(False)
@@ -231,6 +248,10 @@ class _Watchdog:
             signum = data[0]
             if signum not in (signal.SIGINT, signal.SIGTERM):
                 continue
+            if not self.report:  # a rank other than 0 goes on (_signals), for a while
+                if not self.closed.wait(GRACE_S):
+                    self._end(signum)
+                return
             if self.handled.wait(GRACE_S) or self.closed.is_set():
                 # the main thread took it: it writes the report once the interrupt has
                 # left the command (the signals' block closed), unless it was lost
@@ -239,6 +260,9 @@ class _Watchdog:
             self._end(signum)
 
     def _end(self, signum: int) -> None:
+        if not self.report:  # nothing to say or keep: rank 0 reports what converged
+            _remove_private()
+            os._exit(128 + signum)
         from . import runner  # noqa: PLC0415  (lazy: the library is imported by now)
 
         line = []
@@ -258,6 +282,7 @@ class _Watchdog:
                   "abandoned)", file=sys.stderr, flush=True)
         finally:
             _remove_private()
+            _remove_others()
             os._exit(128 + signum)
 
     def close(self):
@@ -301,19 +326,23 @@ def _main(argv) -> int:
             from . import ranks  # noqa: PLC0415  (lazy: the library, after the output helper started)
 
             with ranks.ranks(args) as rank:
-                return _run(args, show and rank == 0, interrupt=rank == 0)
+                return _run(args, show and rank == 0, report=rank == 0)
         return _run(args, show)
     finally:
         logger.removeFilter(flt)
 
 
-def _run(args, show: bool, interrupt: bool = True) -> int:
+def _run(args, show: bool, report: bool = True) -> int:
     """The command, its errors and interrupts reported (:func:`_main`); without
-    ``interrupt`` (a rank other than 0) SIGINT is left ignored: rank 0 reports it."""
+    ``report`` (a rank other than 0 under mpiexec) SIGINT is left ignored and
+    SIGTERM does not stop the run (:func:`_signals`): rank 0 reports what converged
+    and then removes this rank's private directory, after which an error of this
+    rank (a file it can no longer write) ends it without a word."""
+    noted = None
     try:
         from .. import progress  # noqa: PLC0415  (lazy: after the output helper started)
 
-        with progress.bars(show), _signals(interrupt=interrupt):
+        with progress.bars(show), _signals(report=report) as noted:
             return registry.command(args.command).execute(args)
     except KeyboardInterrupt as e:  # SIGINT, or SIGTERM (_signals): keep what converged
         signum = getattr(e, "signum", signal.SIGINT)
@@ -322,6 +351,7 @@ def _run(args, show: bool, interrupt: bool = True) -> int:
             from . import runner  # noqa: PLC0415  (lazy: the library, after the output helper started)
 
             print(f"signorini: {runner.report_interrupt(signum)}", file=sys.stderr)
+            _remove_others()  # under mpiexec: the launcher kills the other ranks any moment
         return 128 + signum
     except ConvergenceError as e:
         print(f"signorini: the solve failed: {e}", file=sys.stderr)
@@ -331,6 +361,10 @@ def _run(args, show: bool, interrupt: bool = True) -> int:
     except SignoriniError as e:
         print(f"signorini: error: {e}", file=sys.stderr)
         return 2
+    except Exception:
+        if noted is not None and noted.is_set() and not report:
+            return 128 + signal.SIGTERM  # its directory removed by rank 0, which reports
+        raise
 
 
 if __name__ == "__main__":

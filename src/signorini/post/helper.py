@@ -163,6 +163,22 @@ def stop() -> None:
             _HELPER = None
 
 
+def abandon() -> None:
+    """End the helper at once, the jobs it still has dropped: their files are not
+    wanted (a rank's private outputs, about to be removed, :mod:`signorini.app.ranks`).
+    Later jobs are done in the calling process. Takes no lock: a thread may call it
+    while the main thread waits for the helper."""
+    global _HELPER
+    helper, _HELPER = _HELPER, None
+    if helper is None:
+        return
+    try:
+        helper.proc.kill()
+        helper.proc.wait(timeout=5)
+    except (OSError, subprocess.TimeoutExpired):
+        pass
+
+
 def finish() -> dict:
     """Wait for the jobs handed to the helper (doing here any it could not) and
     return ``{"used": whether a helper runs, "jobs": jobs handed to it,
