@@ -1,7 +1,8 @@
 """One solve run by every rank under mpiexec (tests/mpi/test_petsc_mpi.py):
 ``python case.py CASE SOLVER OUT.npz [RTOL]`` (RTOL: an iterative solver's). Rank 0 saves the converged unknowns of
 every increment, their DDM sensitivities, and the adjoint and DDM gradients of
-the contact work; the other ranks compute the same and save nothing."""
+the case's response (the contact work unless it names another); the other ranks
+compute the same and save nothing."""
 
 import sys
 
@@ -13,12 +14,21 @@ from signorini.linsolve import AMGKrylov
 from signorini.linsolve.petsc import PetscAMG, PetscSolver, world
 from signorini.problems import forging3d as f3
 from signorini.problems.hertz3d import hertz3d_problem
-from signorini.responses import contact_work
+from signorini.problems.spheres import spheres_problem
+from signorini.responses import contact_work, displacement
 
 CASES = {
     # (problem, steps, names, response, Newton options)
     "frictionless": (lambda: hertz3d_problem({}, n_fine=4), 1, ["R", "E", "P"], None, None),
     "friction": (lambda: hertz3d_problem({"mu": 0.3}, n_fine=4), 3, ["R", "E", "mu"], None, None),
+    # two elastic spheres: a mortar pair (rows coupling a slave node to its master nodes)
+    # with Coulomb friction along Cattaneo-Mindlin's path, P over the first two increments
+    # then Q; n_fine 3: 6 to 9 closed slave nodes, sticking and slipping at every increment.
+    # The response: the lower body's tangential displacement where Q acts (held by friction
+    # alone); the contact work would trace the pair's clipping once more in every process
+    # (5 to 8 s more CPU per process on this 2-core machine)
+    "pairs": (lambda: spheres_problem({"mu": 0.3, "Q": 0.015}, n_fine=3), 4, ["E1", "R1", "mu"],
+              lambda pb: displacement("lower.z0", 0), None),
     # J2 plasticity with friction, path-dependent in both
     "forging3d": (lambda: f3.forging3d_problem(mesh=(3, 3)), 6, ["square", "bulge", "mu", "sigma_y"],
                   lambda pb: (lambda m: f3.out_of_round(m, pb.mesh.node_set("lateral"))),

@@ -1,16 +1,21 @@
 """One solve over MPI ranks on PETSc (solver="petsc": MUMPS; "petsc-amg": the amg
 solver with GAMG's cycle): the converged unknowns, the DDM sensitivities and the
 adjoint gradient equal the serial run's, for a frictionless and a frictional
-(path-dependent) 3-D Hertz problem and the 3-D forging (J2 plasticity with
-friction), on 2 and 3 ranks (oversubscribed on a
-2-core machine). Skipped where the optional MPI install is absent."""
+(path-dependent) 3-D Hertz problem, the 3-D forging (J2 plasticity with
+friction) and two elastic spheres (a frictional mortar pair of two bodies), on 2
+and 3 ranks (oversubscribed on a 2-core machine); an interrupted run under
+mpiexec keeps its converged increments' series and leaves no rank's private
+directory. Skipped where the optional MPI install is absent."""
 
 import importlib.util
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import tempfile
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +23,8 @@ import pytest
 
 HERE = Path(__file__).parent
 CASE = HERE / "case.py"
+#: the ``signorini`` command as the console command runs it
+ENTRY = "import sys; from signorini.app.cli import entry; sys.argv[0] = 'signorini'; entry()"
 
 MISSING = [m for m in ("petsc4py", "mpi4py") if importlib.util.find_spec(m) is None]
 pytestmark = pytest.mark.skipif(
@@ -63,7 +70,7 @@ def case(tmp: Path, name: str, solver: str, ranks: int | None):
 def serial(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("serial")
     return {name: case(tmp, name, "superlu", None) for name in ("frictionless", "friction",
-                                                                 "forging3d")}
+                                                                 "forging3d", "pairs")}
 
 
 def rel(a, b) -> float:
@@ -78,6 +85,8 @@ def rel(a, b) -> float:
     ("frictionless", "petsc-gamg", 2),
     ("forging3d", "petsc", 2),
     ("forging3d", "petsc-amg", 3),
+    ("pairs", "petsc", 2),
+    ("pairs", "petsc-amg", 3),
 ])
 def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
     ref = serial[name]
@@ -96,8 +105,7 @@ def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
 def test_cli_under_mpiexec_writes_once(tmp_path):
     """``mpiexec -n 2 signorini hertz3d --solver petsc``: rank 0 alone prints and
     writes; the result equals the serial command's."""
-    entry = "import sys; from signorini.app.cli import entry; sys.argv[0] = 'signorini'; entry()"
-    cli = [sys.executable, "-c", entry, "hertz3d", "--n-fine", "4", "--no-fd", "-q"]
+    cli = [sys.executable, "-c", ENTRY, "hertz3d", "--n-fine", "4", "--no-fd", "-q"]
     run(cli + ["--out", str(tmp_path / "serial")])
     r = run(launcher(2) + cli + ["--solver", "petsc", "--out", str(tmp_path / "mpi")])
     assert r.stdout.count("results in") == 1  # one rank printed
@@ -122,3 +130,139 @@ def test_iterative_petsc_options_that_fail_say_so(tmp_path):
     assert "SolverError" in r.stderr or "SingularTangentError" in r.stderr \
         or "ConvergenceError" in r.stderr, r.stderr[-3000:]
     assert "petsc4py/PETSc" not in r.stderr  # not raised from inside petsc4py
+
+
+# ------------------------------------------------------------------ interrupts
+def open_mpi() -> bool:
+    out = subprocess.run(["mpiexec", "--version"], check=False, capture_output=True, text=True).stdout
+    return "Open MPI" in out or "OpenRTE" in out
+
+
+def interrupt(cmd: list[str], tmp: Path, marker: str) -> tuple[int, str, list[str]]:
+    """Run ``cmd`` (under mpiexec) with its temporary directory ``tmp`` and send
+    mpiexec SIGINT (Ctrl-C) once rank 0's log shows ``marker``: (exit status, the
+    log, the ranks' private directories in ``tmp`` at the signal)."""
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                         env={**env(), "TMPDIR": str(tmp), "PYTHONUNBUFFERED": "1"})
+    lines, private = [], None
+    try:
+        for line in iter(p.stderr.readline, ""):  # mpiexec passes stderr on unbuffered
+            lines.append(line)
+            if marker in line:
+                private = sorted(d.name for d in tmp.glob("signorini-rank*"))
+                p.send_signal(signal.SIGINT)
+                break
+        lines.append(p.communicate(timeout=300)[1])
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    log = "".join(lines)
+    assert private is not None, f"{marker!r} never came:\n{log[-3000:]}"
+    return p.returncode, log, private
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.skipif(not shutil.which("mpiexec") or not open_mpi(),
+                    reason="Open MPI's mpiexec ends a job's ranks as this test expects")
+def test_an_interrupt_keeps_the_converged_series_and_no_private_directory(tmp_path):
+    """Ctrl-C to ``mpiexec -n 2 signorini hertz3d --set mu=0.3 --steps 60 --solver
+    petsc`` once 3 increments have converged: Open MPI sends every rank SIGTERM a
+    second later and SIGKILL a second after that. summary.json says 'interrupted'
+    with the n converged increments, the .pvd series lists all n, each VTU whole
+    (every rank writes the series as it converges: there is no time to compute it
+    then), nothing half-written, and rank 1's private directory is gone."""
+    tmp = Path(tempfile.mkdtemp(prefix="sg-"))  # short: Open MPI's sockets live there too
+    out = tmp_path / "run"
+    try:
+        cmd = launcher(2) + [sys.executable, "-c", ENTRY, "hertz3d", "--n-fine", "4", "--set",
+                             "mu=0.3", "--steps", "60", "--no-fd", "--solver", "petsc",
+                             "--out", str(out)]
+        _, log, private = interrupt(cmd, tmp, "[base] increment 3 ")
+        assert len(private) == 1 and private[0].startswith("signorini-rank1-"), private
+        assert not list(tmp.glob("signorini-rank*")), log[-3000:]
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and "SIGTERM" in s["reason"], s.get("reason")
+    n = s["converged_increments"]
+    assert 3 <= n < 60 and s["load_factor_reached"] == pytest.approx(n / 60)
+    assert s["files"] == ["hertz3d.pvd"]
+    assert f"kept {n} converged increments (hertz3d.pvd)" in log
+    sets = ET.parse(out / "hertz3d.pvd").getroot().find("Collection")
+    files = [d.get("file") for d in sets]
+    assert files == [f"hertz3d_{k:04d}.vtu" for k in range(1, n + 1)]
+    for f in files:
+        ET.parse(out / f)
+    assert sorted(p.name for p in out.iterdir()) == sorted(["hertz3d.pvd", "summary.json", *files])
+
+
+#: a command whose rank 0 waits inside a PETSc call for rank 1 when the signal comes,
+#: rank 1 behind in Python until half a second after its SIGTERM; then both call
+#: PETSc in turn, as a solve does
+WAITS = '''
+import os, signal, sys, time
+from signorini.app import cli, registry
+from signorini.app.runner import prepare_output
+from signorini.linsolve.petsc import petsc_modules, world
+
+mod = type(sys)("waits")
+def add_parser(sub):
+    p = sub.add_parser("waits")
+    p.add_argument("--out", required=True)
+    p.add_argument("--solver", default="petsc")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-v", "--verbose", action="store_true")
+def execute(args):
+    prepare_output(args.out)
+    PETSc = petsc_modules()[0]
+    v = PETSc.Vec().createMPI(8, comm=PETSc.COMM_WORLD)
+    v.set(1.0)
+    v.dot(v)  # both ranks are here
+    if world()[0] == 0:
+        print("rank 0 waits inside PETSc", file=sys.stderr, flush=True)
+    else:
+        noted, before = [], signal.getsignal(signal.SIGTERM)
+        def note(signum, frame):
+            noted.append(time.monotonic())
+            before(signum, frame)
+        signal.signal(signal.SIGTERM, note)
+        while not noted or time.monotonic() < noted[0] + 0.5:
+            time.sleep(0.01)
+    while True:
+        v.dot(v)  # a collective call, which holds the interpreter's lock while it waits
+        time.sleep(0.01)
+mod.add_parser, mod.execute = add_parser, execute
+sys.modules["waits"] = mod
+registry.COMMANDS["waits"] = "waits"
+code = cli.main(["waits", "--out", sys.argv[1]])
+sys.stderr.flush()
+os._exit(code)
+'''
+
+
+@pytest.mark.timeout(300)
+@pytest.mark.skipif(not shutil.which("mpiexec") or not open_mpi(),
+                    reason="Open MPI's mpiexec ends a job's ranks as this test expects")
+def test_rank_0_waiting_for_another_rank_inside_petsc_still_reports(tmp_path):
+    """SIGTERM reaches rank 0 inside a PETSc call that waits for rank 1 (it holds the
+    interpreter's lock: no handler runs until it returns) while rank 1 is behind,
+    in Python. Rank 1 does not leave on SIGTERM: it goes on into the call, rank 0
+    gets out, writes its report and removes rank 1's private directory, rank 1
+    then waiting in its next PETSc call for a rank 0 that has left. (A rank 1 that
+    left at once, as before, kept rank 0 inside the call until it was killed, with
+    no summary.json.) The launcher's kill comes 3 s after its SIGTERM here, not 1 s,
+    so that a loaded machine does not decide the outcome."""
+    tmp = Path(tempfile.mkdtemp(prefix="sg-"))
+    out = tmp_path / "run"
+    try:
+        cmd = launcher(2) + ["--mca", "odls_base_sigkill_timeout", "3", sys.executable, "-c",
+                             WAITS, str(out)]
+        _, log, private = interrupt(cmd, tmp, "rank 0 waits inside PETSc")
+        assert len(private) == 1 and private[0].startswith("signorini-rank1-"), private
+        assert not list(tmp.glob("signorini-rank*")), log[-3000:]
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and "SIGTERM" in s["reason"]
+    assert "interrupted by SIGTERM" in log and "Traceback" not in log
