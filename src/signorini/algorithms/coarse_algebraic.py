@@ -379,18 +379,15 @@ class _Stage:
                 info["abandoned"] = "singular coarse tangent"
                 return None, None
             step = 1.0
-            trial = at(uc + duc)
+            full = trial = at(uc + duc)
             # the first step leaves a contact-free start: its residual rises as the zone
             # closes, which no shorter step helps
-            for _ in range(HALVINGS if k > 0 else 0):
-                if trial[3] < norm:
-                    break
-                step *= 0.5
-                trial = at(uc + step * duc)
-            else:
-                if trial[3] >= norm and k > 0:  # no step lowers it: the full one, as Newton's
-                    step = 1.0
-                    trial = at(uc + duc)
+            if k > 0:
+                while trial[3] >= norm and step > 0.5 ** HALVINGS:
+                    step *= 0.5
+                    trial = at(uc + step * duc)
+                if trial[3] >= norm:  # no step lowers it: the full one, as Newton's
+                    step, trial = 1.0, full
             if trial[1] is None:
                 info["abandoned"] = "non-finite residual"
                 return None, None
