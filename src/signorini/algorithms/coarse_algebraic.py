@@ -394,6 +394,7 @@ class _Stage:
             uc = uc + step * duc
             w, rc, blocks, norm = trial
             info["iterations"] = info.get("iterations", 0) + 1
+            log.debug("coarse stage iteration %d: residual %.3e (step %g)", k + 1, norm / ref, step)
             if step < 1.0:
                 info["halved_steps"] = info.get("halved_steps", 0) + 1
         raise AssertionError("unreachable")
