@@ -360,6 +360,53 @@ def test_several_right_hand_sides_share_their_search_space(monkeypatch):
     assert sum(shared.iterations[1:]) < sum(alone.iterations[1:]) - 3
 
 
+def test_right_hand_sides_iterated_side_by_side_are_solved_as_one_by_one(monkeypatch):
+    """The sensitivities of several parameters (a frictional tangent, the
+    block-triangular preconditioner): GMRES on the columns side by side, the
+    V-cycle and K acting on the block of the columns still iterating, gives each
+    column the iterations and the solution of its own GMRES, also in groups (a
+    memory budget for two columns at once), from guesses, and with a zero column."""
+    captured = []
+    real = AMGKrylov._shared_gmres
+
+    def keep(self, K, apply, b, rtol, x0=None):
+        if b.shape[1] > 1:
+            captured.append((K, apply, b))
+        return real(self, K, apply, b, rtol, x0)
+    monkeypatch.setattr(AMGKrylov, "_shared_gmres", keep)
+    lin = AMGKrylov()
+    sg.solve(hertz3d_friction(block(n=5)), steps=2, wrt=["R", "E", "eps", "mu"], solver=lin)
+    monkeypatch.setattr(AMGKrylov, "_shared_gmres", real)
+    K, apply, b = captured[-1]
+    assert b.shape[1] == 4 and apply.blocks
+    n = K.shape[0]
+    b = np.column_stack([b, np.zeros(n)])  # a zero column: x = 0, no iteration
+    guess = 0.9 * np.linalg.solve(K.toarray(), b) if n < 4000 else None
+    runs = {}
+    for name, budget in [("one by one", 0), ("side by side", 1e12),
+                         ("two at a time", 2.5 * 16 * n * (lin.restart + 1))]:
+        s = AMGKrylov()
+        s.LOCKSTEP_BYTES = budget
+        calls = []
+        if budget:  # every column goes through the side-by-side iteration
+            monkeypatch.setattr(s, "_lockstep", lambda *a, s=s, calls=calls: (
+                calls.append(a[2].shape[1]), AMGKrylov._lockstep(s, *a))[1])
+        x = s._krylov(K, apply, b)
+        xg = s._krylov(K, apply, b, x0=guess) if guess is not None else x
+        runs[name] = (x, xg, s.iterations, calls)
+        for j in range(5):
+            assert np.linalg.norm(b[:, j] - K @ x[:, j]) <= 1e-11 * max(np.linalg.norm(b[:, j]), 1e-300)
+    assert runs["side by side"][3] == [5] + ([5] if guess is not None else [])
+    assert runs["two at a time"][3][:3] == [2, 2, 1]
+    ref = runs["one by one"]
+    assert ref[2][4] == 0 and not np.any(ref[0][:, 4])
+    for name in ("side by side", "two at a time"):
+        x, xg, its, _ = runs[name]
+        assert its == ref[2], name  # each column the same GMRES
+        assert np.abs(x - ref[0]).max() <= 1e-12 * np.abs(ref[0]).max(), name
+        assert np.abs(xg - ref[1]).max() <= 1e-12 * np.abs(ref[1]).max(), name
+
+
 def test_a_solve_does_not_depend_on_what_the_process_drew_before():
     """The same solve twice, with NumPy's global random generator drawn from in
     between (as pyamg's own setups, an earlier AMG solve or a user's ``np.random`` do):

@@ -33,6 +33,34 @@ def test_row_split_products_are_the_whole_products_to_the_bit(monkeypatch, fmt):
             assert 1 < len(parts) <= n and parts[0][0] == 0 and parts[-1][1] == M.shape[0]
 
 
+@pytest.mark.parametrize("fmt", ["csr", "bsr"])
+def test_row_split_products_of_a_block_of_vectors_are_its_columns_products(monkeypatch, fmt):
+    """A block X (n, k) in one product, split by rows over the threads: each column
+    of M X is M times that column."""
+    monkeypatch.setattr(multigrid, "SPLIT_ROWS", 0)
+    A, _ = elasticity(16)
+    M = A.tocsr() if fmt == "csr" else A
+    X = np.random.default_rng(3).standard_normal((M.shape[1], 3))
+    for n in (1, 2, 3):
+        with product_threads(n):
+            Y = RowSplit(M) @ X
+        assert Y.shape == X.shape
+        for j in range(3):
+            assert np.allclose(Y[:, j], M @ X[:, j], rtol=0, atol=1e-13 * np.abs(Y).max()), (n, j)
+
+
+def test_a_cycle_of_a_block_of_vectors_is_the_cycle_of_each():
+    """V(B) for a block B (n, k): column j is V(B[:, j]), the coarse level included."""
+    import pyamg
+    A, B = elasticity(40)
+    V = ChebyshevCycle(pyamg.smoothed_aggregation_solver(A, B=B, max_coarse=50))
+    assert V.blocks
+    X = np.random.default_rng(4).standard_normal((A.shape[0], 3))
+    Y = V(X)
+    for j in range(3):
+        assert np.allclose(Y[:, j], V(X[:, j]), rtol=0, atol=1e-12 * np.abs(Y).max()), j
+
+
 def test_lambda_max_estimate_bounds_the_spectrum():
     """1.1 times the Arnoldi estimate lies above the largest eigenvalue of D^-1 A (else
     the smoother amplifies the top of the spectrum), the estimate itself below it."""

@@ -100,10 +100,12 @@ class RowSplit:
         return self._parts[n]
 
     def __matmul__(self, x):
+        """M x for a vector x, or M X for a block X (n, k) of vectors (one pass
+        over M for the k of them)."""
         n = _THREADS[0]
-        if n == 1 or self.shape[0] < SPLIT_ROWS or x.ndim != 1:
+        if n == 1 or self.shape[0] < SPLIT_ROWS or x.ndim > 2:
             return self.M @ x
-        y = np.empty(self.shape[0], dtype=np.result_type(self.dtype, x.dtype))
+        y = np.empty((self.shape[0],) + x.shape[1:], dtype=np.result_type(self.dtype, x.dtype))
 
         def rows(part):
             a, b, Mp = part
@@ -174,7 +176,13 @@ class _Level:
 
 class ChebyshevCycle:
     """x = V(b): one V-cycle of pyamg's hierarchy ``ml`` with Chebyshev smoothing
-    (the module's text); a level in BSR format is smoothed with its nodal blocks."""
+    (the module's text); a level in BSR format is smoothed with its nodal blocks.
+    ``b`` is a vector, or a block (n, k) of vectors cycled together (each column's
+    result that of its own cycle): every product then reads a level's matrix once
+    for the k of them."""
+
+    #: the cycle takes blocks of vectors
+    blocks = True
 
     def __init__(self, ml):
         self.levels = [_Level(lv.A, lv.P, lv.R, COARSE_DEGREE if i else DEGREE,
@@ -201,6 +209,9 @@ class ChebyshevCycle:
         if i == 0:
             b = np.asarray(b, dtype=float)
         if i == len(self.levels):
+            if b.ndim == 2:  # the coarse solve a column at a time (pyamg's takes vectors)
+                return np.column_stack([np.asarray(self._coarse(np.ascontiguousarray(c))).ravel()
+                                        for c in b.T])
             return np.asarray(self._coarse(b)).ravel()
         lv = self.levels[i]
         x = lv.smooth(b)
