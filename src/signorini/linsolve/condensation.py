@@ -91,32 +91,36 @@ class Condensed:
 
     def preconditioner(self, v_cycle):
         """r -> x: the exact condensation around one V-cycle on the reduced operator
-        (``v_cycle`` acts on displacement vectors in the node frames)."""
+        (``v_cycle`` acts on displacement vectors in the node frames). ``r`` is a
+        vector, or a block (n, k) of vectors where the V-cycle takes blocks."""
         n_u = self.n_u
+        nodes = "nij,nj...->ni..."  # a node's matrix times its vector (or block of vectors)
 
         def apply(r):
+            free = self.free if r.ndim == 1 else self.free[:, None]
             r_u = np.array(r[:n_u], dtype=float)
             r_l = r[n_u:]
-            xp = np.zeros(n_u)
+            xp = np.zeros(r_u.shape)
             for b in self.buckets:
                 rl = r_l[b.lam]
-                r_u[b.cols] -= np.einsum("nij,nj->ni", b.BDp, rl)
+                r_u[b.cols] -= np.einsum(nodes, b.BDp, rl)
                 if b.Pp is not None:
-                    xp[b.cols] = np.einsum("nij,nj->ni", b.Pp, rl)
+                    xp[b.cols] = np.einsum(nodes, b.Pp, rl)
             s = r_u - self.Ap_cols @ xp[self.contact_cols]
-            y = v_cycle((self.TL.T @ s) * self.free) * self.free
+            y = v_cycle((self.TL.T @ s) * free) * free
             x_u = xp + self.TR @ y
-            res = np.zeros(n_u)
+            res = np.zeros(r_u.shape)
             res[self.contact_cols] = r_u[self.contact_cols] - self.Ap_rows @ x_u
-            x = np.empty(len(r))
+            x = np.empty(r.shape)
             x[:n_u] = x_u
             x_l = x[n_u:]
             for b in self.buckets:
-                xl = np.einsum("nij,nj->ni", b.Dp, r_l[b.lam] - np.einsum("nij,nj->ni", b.C, x_u[b.cols]))
+                xl = np.einsum(nodes, b.Dp, r_l[b.lam] - np.einsum(nodes, b.C, x_u[b.cols]))
                 if b.Zg is not None:
-                    xl += np.einsum("nij,nj->ni", b.Zg, res[b.cols])
+                    xl += np.einsum(nodes, b.Zg, res[b.cols])
                 x_l[b.lam] = xl
             return x
+        apply.blocks = getattr(v_cycle, "blocks", False)
         return apply
 
 
