@@ -544,22 +544,7 @@ class AMGKrylov(LinearSolver):
                     z = apply(V[:, i])
                     w = K @ z
                     Z[:, i] = z
-                    nw = float(np.linalg.norm(w))
-                    for _ in range(2):  # a second pass only where the first cancelled
-                        before = nw      # (Kahan and Parlett: below 1/sqrt(2) of w)
-                        if q:
-                            c_ = C[:, :q].T @ w
-                            w -= C[:, :q] @ c_
-                            B[:, i] += c_
-                        h = V[:, :i + 1].T @ w
-                        w -= V[:, :i + 1] @ h
-                        H[:i + 1, i] += h
-                        nw = float(np.linalg.norm(w))
-                        if nw > 0.7071 * before:
-                            break
-                    if not np.isfinite(nw):  # before the least squares, which would fail on it
-                        raise SolverError(_NOT_FINITE.format("non-finite values"))
-                    H[i + 1, i] = nw
+                    nw = _arnoldi_step(w, V, H, i, (C[:, :q], B) if q else None)
                     i += 1
                     its += 1
                     y, *_ = np.linalg.lstsq(H[:i + 1, :i], g[:i + 1], rcond=None)
@@ -636,18 +621,7 @@ class AMGKrylov(LinearSolver):
                 V, Zj, H, g, beta, _, _ = st = state[j]
                 Zj[:, i] = Z[:, c]
                 w = W[:, c].copy()
-                nw = float(np.linalg.norm(w))
-                for _ in range(2):  # a second pass only where the first cancelled
-                    before = nw
-                    h = V[:, :i + 1].T @ w
-                    w -= V[:, :i + 1] @ h
-                    H[:i + 1, i] += h
-                    nw = float(np.linalg.norm(w))
-                    if nw > 0.7071 * before:
-                        break
-                if not np.isfinite(nw):
-                    raise SolverError(_NOT_FINITE.format("non-finite values"))
-                H[i + 1, i] = nw
+                nw = _arnoldi_step(w, V, H, i)
                 its[j] += 1
                 y, *_ = np.linalg.lstsq(H[:i + 2, :i + 1], g[:i + 2], rcond=None)
                 est = float(np.linalg.norm(g[:i + 2] - H[:i + 2, :i + 1] @ y))
@@ -728,6 +702,33 @@ class AMGKrylov(LinearSolver):
                     f"residual {rtol:g} in {spent + its} iterations (reached {rel:.1e}); use a "
                     "direct solver (solver='pardiso' or 'superlu'), or a larger max_iterations")
         return x, its
+
+
+def _arnoldi_step(w, V, H, i: int, deflate=None) -> float:
+    """GMRES's step i: ``w`` (K times the i-th preconditioned direction)
+    orthogonalised in place by classical Gram-Schmidt against ``deflate`` = (C, B),
+    the kept space (its coefficients added to B[:, i]), if given, and the basis
+    V[:, :i + 1] (to H[:i + 1, i]), a second pass only where the first cancelled
+    (Kahan and Parlett: below 1/sqrt(2) of w); H[i + 1, i] = ||w||, returned,
+    checked finite before the least squares, which would fail on it."""
+    nw = float(np.linalg.norm(w))
+    for _ in range(2):
+        before = nw
+        if deflate is not None:
+            C, B = deflate
+            c_ = C.T @ w
+            w -= C @ c_
+            B[:, i] += c_
+        h = V[:, :i + 1].T @ w
+        w -= V[:, :i + 1] @ h
+        H[:i + 1, i] += h
+        nw = float(np.linalg.norm(w))
+        if nw > 0.7071 * before:
+            break
+    if not np.isfinite(nw):
+        raise SolverError(_NOT_FINITE.format("non-finite values"))
+    H[i + 1, i] = nw
+    return nw
 
 
 _NOT_FINITE = ("the iterative solver's preconditioner returned {}: the multigrid hierarchy "
