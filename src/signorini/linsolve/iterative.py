@@ -501,16 +501,16 @@ class AMGKrylov(LinearSolver):
         import scipy.linalg as sla  # noqa: PLC0415  (lazy: 77 ms with scipy.linalg)
 
         n, k = b.shape
-        K_, K = K, RowSplit(K)  # products on all the cores (multigrid.RowSplit)
         cap = int(min(self.max_iterations, self.RECYCLE_BYTES // (16 * n))) if k > 1 else 0
         together = int(self.LOCKSTEP_BYTES // (16 * n * (self.restart + 1)))
         if not cap and k > 1 and together > 1 and getattr(apply, "blocks", False):
             x = np.empty((n, k), order="F")
             for j in range(0, k, together):
                 cols = slice(j, min(k, j + together))
-                x[:, cols] = self._lockstep(K_, apply, b[:, cols], rtol,
+                x[:, cols] = self._lockstep(K, apply, b[:, cols], rtol,
                                             None if x0 is None else x0[:, cols])
             return x
+        K_, K = K, RowSplit(K)  # products on all the cores (multigrid.RowSplit)
         U = np.empty((n, cap), order="F")
         C = np.empty((n, cap), order="F")
         q = 0
@@ -584,8 +584,8 @@ class AMGKrylov(LinearSolver):
         """The right-hand sides ``b`` (n, k) of one tangent by k flexible GMRES
         iterations run side by side: at every step the preconditioner and K act
         on the block of the columns still iterating (one pass over each matrix for
-        all of them: a V-cycle of a block of three vectors costs about 0.7 of three
-        cycles, a product with K half of three, at 66k DOFs), each column
+        all of them: a V-cycle of a block of three vectors costs about 0.8 of three
+        cycles, a product with K about 0.8 of three, at 66k DOFs), each column
         orthogonalised against its own basis as :meth:`_shared_gmres` does. Each
         column is the same GMRES as alone, and stops when it reaches ``rtol``; one
         cycle of at most ``restart`` iterations, then, for a column short of
