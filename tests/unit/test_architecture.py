@@ -21,7 +21,7 @@ PKG = "signorini"
 
 #: lowest first; a module may import its own layer or a lower one
 LAYERS = [
-    ("core", ["signorini._deprecation", "signorini.interfaces", "signorini._jax", "signorini._memo", "signorini._version", "signorini.errors",
+    ("core", ["signorini._deprecation", "signorini.interfaces", "signorini._jax", "signorini._small", "signorini._memo", "signorini._version", "signorini.errors",
               "signorini.params", "signorini.progress", "signorini.timing",
               "signorini._programs"]),
     ("materials", ["signorini.materials"]),

@@ -34,6 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import _small
 from .._jax import jax, jnp
 
 #: most vertices of an overlap polygon: a convex n-gon clipped by a convex
@@ -346,11 +347,11 @@ def dual_functions(N, w, mask=None):
     # the missing Phi is zero (its d is zero)
     M = M + jnp.diag(1.0 - mask)
     trace = jnp.sum(mask * jnp.diag(M))
-    det = jnp.linalg.det(M)
+    det = _small.det(M)
     tau = jnp.asarray([TAU.get(int(i), 0.0) for i in range(n + 1)])[jnp.sum(mask).astype(int)]
     ok = det > tau * trace ** jnp.sum(mask)
     M = jnp.where(ok, M, jnp.eye(n, dtype=N.dtype))
-    A = d[:, None] * jnp.linalg.inv(M) * ok  # (n, n): Phi_j = sum_k A_jk N_k
+    A = d[:, None] * _small.spd_inv(M) * ok  # (n, n): Phi_j = sum_k A_jk N_k
     return N @ A.T
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import _small
 from .._jax import jax, jnp
 from ..errors import InputError
 from .element import DN_PARENT, N_PARENT, STANDARD, FBar, average_cauchy
@@ -167,8 +168,8 @@ def _cell(cell) -> CellType:
 def physical_gradients(dN, Xe):
     """dN/dX (g, n, 3) and det(dX/dxi) (g,) from parent gradients dN (g, n, 3)."""
     J = jnp.einsum("gai,aj->gji", dN, Xe)  # dX_j/dxi_i
-    detJ = jnp.linalg.det(J)
-    return jnp.einsum("gai,gij->gaj", dN, jnp.linalg.inv(J)), detJ
+    detJ = _small.det(J)
+    return jnp.einsum("gai,gij->gaj", dN, _small.adjugate(J) / detJ[:, None, None]), detJ
 
 
 def _points(Xe, cell: CellType):

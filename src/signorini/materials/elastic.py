@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .. import _small
 from .._jax import jax, jnp
 from ..interfaces import MaterialDefaults
 from ..errors import InputError
@@ -19,7 +20,7 @@ from ..params import Spec, resolve
 def det_minus_one(H):
     """det(I + H) - 1 = I1(H) + I2(H) + I3(H), without cancellation for small H."""
     tr = jnp.trace(H)
-    return tr + 0.5 * (tr**2 - jnp.trace(H @ H)) + jnp.linalg.det(H)
+    return tr + 0.5 * (tr**2 - jnp.trace(H @ H)) + _small.det(H)
 
 
 @dataclass(frozen=True)
@@ -103,4 +104,4 @@ class NeoHooke(_Elastic):
 
     def cauchy(self, H, mp):
         F = jnp.eye(3) + H
-        return self.first_piola(H, mp) @ F.T / jnp.linalg.det(F)
+        return self.first_piola(H, mp) @ F.T / _small.det(F)

@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import _small
 from .._jax import jax, jnp
 from ..interfaces import MaterialDefaults
 from ..errors import InputError
@@ -30,25 +31,10 @@ _I = np.eye(3)  # NumPy: a JAX op at import is compiled, one program each (theor
 _NEWTON_STEPS = 8
 
 
-def _det3(A):
-    """Determinant of a 3x3 matrix by cofactors (cheaper to trace and differentiate
-    than the LU of jnp.linalg.det)."""
-    return (A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
-            - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
-            + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]))
-
-
-def _adj3(A):
-    """Adjugate of a 3x3 matrix: A adj(A) = det(A) I."""
-    c = lambda i, j: (A[(i + 1) % 3, (j + 1) % 3] * A[(i + 2) % 3, (j + 2) % 3]
-                      - A[(i + 1) % 3, (j + 2) % 3] * A[(i + 2) % 3, (j + 1) % 3])
-    return jnp.asarray([[c(j, i) for j in range(3)] for i in range(3)])
-
-
 def _det_minus_one(H):
     """det(I + H) - 1 = I1(H) + I2(H) + I3(H), without cancellation for small H."""
     tr = jnp.trace(H)
-    return tr + 0.5 * (tr**2 - jnp.sum(H * H.T)) + _det3(H)
+    return tr + 0.5 * (tr**2 - jnp.sum(H * H.T)) + _small.det(H)
 
 
 def _dev(A):
@@ -202,7 +188,7 @@ class J2Plasticity(MaterialDefaults):
         alpha = alpha_n + _SQ23 * dgamma
 
         tau = 0.5 * kappa * d * (2.0 + d) * _I + s   # J U'(J) = kappa/2 (J^2 - 1)
-        Finv = _adj3(F) / J
+        Finv = _small.adjugate(F) / J
         P = tau @ Finv.T
 
         # updated bbar_e = s/mu + Ibar I with det bbar_e = 1: Newton on the cubic,
@@ -210,7 +196,7 @@ class J2Plasticity(MaterialDefaults):
         # produces a non-finite value or derivative
         a = jnp.where(plastic, s / mu, 0.0)
         j2 = 0.5 * jnp.sum(a * a)
-        det_a = _det3(a)
+        det_a = _small.det(a)
         # start: an upper bound of the root (x + a_i >= 1 for every eigenvalue a_i
         # of the deviator a, whose |a_i| <= sqrt(2/3) ||a||), within ~||a||^2 of it
         x0 = jnp.minimum(Ibar_tr, 1.0 + 2.0 / 3.0 * (sy + Hk * alpha) / mu)
