@@ -96,3 +96,37 @@ def test_the_command_uses_the_helper(tmp_path):
         assert (out / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "displacement" in (out / "hertz.vtu").read_text()
     assert not list(out.glob(".*partial*"))
+
+
+def test_discarded_outputs_are_neither_computed_nor_written(tmp_path, running, monkeypatch):
+    # a rank other than 0 under mpiexec: no figure, no VTU file, no VTU fields computed
+    import signorini as sg
+    from signorini.post import files
+
+    m = sg.rectangle(np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+    pb = sg.Problem(m, sg.LinearElastic("E", 0.3), {"E": 100.0, "q": 2.0},
+                    fixed=(sg.Fixed("bottom", 1), sg.Fixed("left", 0)),
+                    loads=(sg.Pressure("top", "q"),))
+    sol = sg.solve(pb, steps=2)
+    computed = []
+    fields = files._fields
+    monkeypatch.setattr(files, "_fields", lambda *a: computed.append(a) or fields(*a))
+    helper.discard(True)
+    try:
+        assert helper._HELPER is None  # its helper ended
+        assert draw(tmp_path / "a.png") == tmp_path / "a.png"
+        vtu(tmp_path / "a.vtu")
+        assert files.write_vtu(sol, tmp_path / "s.vtu") == tmp_path / "s.vtu"
+        (tmp_path / "series").mkdir()
+        files.write_pvd(sol, tmp_path / "series" / "run.pvd")
+        helper.finish()
+        assert computed == []
+        assert not (tmp_path / "a.png").exists() and not (tmp_path / "a.vtu").exists()
+        assert not (tmp_path / "s.vtu").exists() and not list((tmp_path / "series").glob("*.vtu"))
+    finally:
+        helper.discard(False)
+    # and restored: written again
+    files.write_vtu(sol, tmp_path / "s.vtu")
+    draw(tmp_path / "a.png")
+    helper.finish()
+    assert len(computed) == 1 and (tmp_path / "s.vtu").exists() and (tmp_path / "a.png").exists()

@@ -2,7 +2,7 @@
 
 Under ``mpiexec -n N signorini ... --solver petsc`` every rank runs the command;
 the ranks other than 0 compute the same, silently, into a private directory
-removed at the end (docs/parallel.md).
+removed at the end, drawing no figure and writing no VTU file (docs/parallel.md).
 
 An interrupt is rank 0's to report. Open MPI's launcher, on Ctrl-C, sends every
 rank SIGTERM and kills it one second later; PETSc's calls hold the interpreter's
@@ -86,6 +86,8 @@ def ranks(args):
         private = Path(tempfile.mkdtemp(prefix=f"signorini-rank{rank}-"))
         _PRIVATE.append(private)
         args.out = str(private)
+        # its figures and VTU files (and their fields) are not computed at all
+        helper.discard(True)
     if size > 1:
         from mpi4py import MPI  # noqa: PLC0415  (lazy: an optional install, loaded by petsc.world)
 
@@ -107,6 +109,8 @@ def ranks(args):
         runner.stream_series(False)
         _OTHERS.clear()
         remove_private()
+        if rank > 0:
+            helper.discard(False)
 
 
 @contextlib.contextmanager

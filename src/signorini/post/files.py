@@ -48,7 +48,8 @@ def write_vtu(solution, path, i: int = -1, body: str | None = None) -> Path:
     with ``body`` (a name) only that body's nodes and cells are written. The
     fields are computed here; the file is written by the output helper if one
     runs (:mod:`signorini.post.helper`)."""
-    _write_part(Path(path), _fields(solution, i), bodies(solution), body)
+    if not helper.discarding():
+        _write_part(Path(path), _fields(solution, i), bodies(solution), body)
     return Path(path)
 
 
@@ -202,6 +203,8 @@ def _series_files(solution, path: Path, i: int) -> list[tuple[str | None, Path]]
 
 def _write_increment(solution, path: Path, i: int) -> None:
     """The VTU files of increment ``i`` of the series ``path``."""
+    if helper.discarding():
+        return
     fields = _fields(solution, i)  # once per increment, whatever the number of bodies
     for body, vtu in _series_files(solution, path, i):
         _write_part(vtu, fields, bodies(solution), body)

@@ -135,6 +135,8 @@ class _Process:
 
 _HELPER: _Process | None = None
 _LOCK = threading.Lock()
+#: every output job dropped (:func:`discard`)
+_DISCARD = {"on": False}
 
 
 def start() -> bool:
@@ -179,6 +181,21 @@ def abandon() -> None:
         pass
 
 
+def discard(on: bool = True) -> None:
+    """From now on (``on``) drop every figure and VTU file instead of drawing and
+    writing it, and compute no VTU fields: a rank other than 0 of a run under
+    ``mpiexec``, whose outputs nobody reads (:mod:`signorini.app.ranks`). Its helper,
+    if any, is ended (one process fewer per rank). ``discard(False)`` restores."""
+    _DISCARD["on"] = bool(on)
+    if on:
+        abandon()
+
+
+def discarding() -> bool:
+    """Whether output jobs are dropped (:func:`discard`)."""
+    return _DISCARD["on"]
+
+
 def finish() -> dict:
     """Wait for the jobs handed to the helper (doing here any it could not) and
     return ``{"used": whether a helper runs, "jobs": jobs handed to it,
@@ -196,6 +213,8 @@ def finish() -> dict:
 def run(kind: str, *args, **kwargs) -> None:
     """Do job ``kind`` (:data:`JOBS`) with these arguments: by the helper if one
     runs and the arrays are small enough, else here and now."""
+    if _DISCARD["on"]:
+        return
     job = (kind, _plain(args), _plain(kwargs))
     with _LOCK:
         handed = (_HELPER is not None and _nbytes(job) <= MAX_JOB_BYTES
