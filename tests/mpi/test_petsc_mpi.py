@@ -170,7 +170,7 @@ def test_an_interrupt_keeps_the_converged_series_and_no_private_directory(tmp_pa
     petsc`` once 3 increments have converged: Open MPI sends every rank SIGTERM a
     second later and SIGKILL a second after that. summary.json says 'interrupted'
     with the n converged increments, the .pvd series lists all n, each VTU whole
-    (every rank writes the series as it converges: there is no time to compute it
+    (rank 0 writes the series as it converges: there is no time to compute it
     then), nothing half-written, and rank 1's private directory is gone."""
     tmp = Path(tempfile.mkdtemp(prefix="sg-"))  # short: Open MPI's sockets live there too
     out = tmp_path / "run"
