@@ -570,14 +570,7 @@ class AMGKrylov(LinearSolver):
                         C[:, q:q + i] = V[:, :i] @ Qh[:i] if broke else V[:, :i + 1] @ Qh
                         q += i
                 del V, Z
-            if np.linalg.norm(bj - K @ xj) > rtol * nb:
-                # where the cycle stopped short (its residual's recurrence drifted from the
-                # true one near the accuracy of K U = C, or it ran out of directions):
-                # plain flexible GMRES from its iterate
-                xj[:], more = self._fgmres(K_, apply, bj, rtol, x0=xj.copy(),
-                                           budget=self.max_iterations - its, spent=its)
-                its += more
-            self.iterations.append(its)
+            self._finish(K_, K, apply, bj, xj, rtol, its)
         return x
 
     def _lockstep(self, K, apply, b, rtol: float, x0=None):
@@ -596,7 +589,7 @@ class AMGKrylov(LinearSolver):
         x = np.zeros((n, k), order="F")
         nb = np.linalg.norm(b, axis=0)
         its = [0] * k
-        state = {}  # column -> [V, Z, H, g, beta, y, stop]
+        state: dict[int, _Column] = {}
         for j in range(k):
             start = None if x0 is None else _start(K, b[:, j], x0[:, j])
             if start is None:
@@ -609,43 +602,49 @@ class AMGKrylov(LinearSolver):
                 V[:, 0] = r / beta
                 g = np.zeros(mmax + 1)
                 g[0] = beta
-                state[j] = [V, np.empty((n, mmax), order="F"), np.zeros((mmax + 1, mmax)), g,
-                            beta, None, None]
+                state[j] = _Column(V, np.empty((n, mmax), order="F"), np.zeros((mmax + 1, mmax)),
+                                   g, beta)
         active = sorted(state)
         i = 0
         while active and i < mmax and i < self.max_iterations:
-            Z = apply(np.column_stack([state[j][0][:, i] for j in active]))
+            Z = apply(np.column_stack([state[j].V[:, i] for j in active]))
             W = K @ Z
             still = []
             for c, j in enumerate(active):
-                V, Zj, H, g, beta, _, _ = st = state[j]
-                Zj[:, i] = Z[:, c]
+                col = state[j]
+                col.Z[:, i] = Z[:, c]
                 w = W[:, c].copy()
-                nw = _arnoldi_step(w, V, H, i)
+                nw = _arnoldi_step(w, col.V, col.H, i)
                 its[j] += 1
-                y, *_ = np.linalg.lstsq(H[:i + 2, :i + 1], g[:i + 2], rcond=None)
-                est = float(np.linalg.norm(g[:i + 2] - H[:i + 2, :i + 1] @ y))
-                st[5], st[6] = y, i + 1
-                if not nw > 1e-14 * beta:
+                H, g = col.H[:i + 2, :i + 1], col.g[:i + 2]
+                col.y, *_ = np.linalg.lstsq(H, g, rcond=None)
+                col.steps = i + 1
+                est = float(np.linalg.norm(g - H @ col.y))
+                if not nw > 1e-14 * col.beta:
                     continue  # the space holds the solution (or the preconditioner failed)
-                V[:, i + 1] = w / nw
+                col.V[:, i + 1] = w / nw
                 if est > rtol * nb[j]:
                     still.append(j)
             active = still
             i += 1
-        for j, (_, Zj, _, _, _, y, stop) in state.items():
-            if stop:
-                x[:, j] += Zj[:, :stop] @ y
+        for j, col in state.items():
+            if col.steps:
+                x[:, j] += col.Z[:, :col.steps] @ col.y
         del state
         for j in range(k):
-            xj = x[:, j]
-            if nb[j] > 0 and np.linalg.norm(b[:, j] - K @ xj) > rtol * nb[j]:
-                # short of rtol after the cycle: plain flexible GMRES from its iterate
-                xj[:], more = self._fgmres(K_, apply, b[:, j], rtol, x0=xj.copy(),
-                                           budget=self.max_iterations - its[j], spent=its[j])
-                its[j] += more
-            self.iterations.append(its[j])
+            self._finish(K_, K, apply, b[:, j], x[:, j], rtol, its[j])
         return x
+
+    def _finish(self, K_, K, apply, b, x, rtol: float, its: int) -> None:
+        """A column after its GMRES cycle: where it stopped short of ``rtol`` (its
+        residual's recurrence drifted from the true one, or it ran out of
+        directions), plain flexible GMRES from its iterate ``x`` (updated in
+        place); its iterations are counted (K_ is K, K its row-split product)."""
+        if np.any(b) and np.linalg.norm(b - K @ x) > rtol * np.linalg.norm(b):
+            x[:], more = self._fgmres(K_, apply, b, rtol, x0=x.copy(),
+                                      budget=self.max_iterations - its, spent=its)
+            its += more
+        self.iterations.append(its)
 
     @staticmethod
     def _norm(K) -> float:
@@ -734,6 +733,22 @@ def _arnoldi_step(w, V, H, i: int, deflate=None) -> float:
 _NOT_FINITE = ("the iterative solver's preconditioner returned {}: the multigrid hierarchy "
                "failed on this tangent; use a direct solver (solver='pardiso' or 'superlu') or, "
                "with petsc-amg, other --petsc-options")
+
+
+@dataclass
+class _Column:
+    """One column of :meth:`AMGKrylov._lockstep`: its Arnoldi basis V, the
+    preconditioned directions Z, the Hessenberg matrix H, the right-hand side g of
+    its least-squares problem, the initial residual's norm beta, and, once it has
+    iterated, the coefficients y of its correction Z[:, :steps] y."""
+
+    V: np.ndarray
+    Z: np.ndarray
+    H: np.ndarray
+    g: np.ndarray
+    beta: float
+    y: np.ndarray | None = None
+    steps: int = 0
 
 
 class _Kept:
