@@ -2,7 +2,9 @@
 ``python case.py CASE SOLVER OUT.npz [RTOL]`` (RTOL: an iterative solver's). Rank 0 saves the converged unknowns of
 every increment, their DDM sensitivities, and the adjoint and DDM gradients of
 the case's response (the contact work unless it names another); the other ranks
-compute the same and save nothing."""
+compute the same and save nothing. A case named ``NAME-cells`` evaluates the
+element kernels through the kinds' programs (as on large meshes), which the ranks
+share out, and saves the cells each rank evaluated for a tangent."""
 
 import sys
 
@@ -12,6 +14,9 @@ import signorini as sg
 from signorini.design.gradient import gradient
 from signorini.linsolve import AMGKrylov
 from signorini.linsolve.petsc import PetscAMG, PetscSolver, world
+from signorini.model import chunks
+from signorini.model.cells import CellKernels
+from signorini.model.kernels import Model
 from signorini.problems import forging3d as f3
 from signorini.problems.hertz3d import hertz3d_problem
 from signorini.problems.spheres import spheres_problem
@@ -36,7 +41,28 @@ CASES = {
 }
 
 
+def cells_per_tangent() -> list[int]:
+    """Count the cells of every element-tangent evaluation of this process (the
+    kind's programs, Chunked.start): a rank that shares out the cells counts its own."""
+    counts = []
+    start = chunks.Chunked.start
+
+    def counted(self, name, outs, items, shared):
+        if name == "tangent" and isinstance(self, CellKernels):
+            counts.append(chunks._count(items))
+        return start(self, name, outs, items, shared)
+    chunks.Chunked.start = counted
+    return counts
+
+
 def main(case: str, solver: str, out: str, rtol: str | None = None) -> None:
+    counts = None
+    if case.endswith("-cells"):
+        # the element kernels through the kinds' programs (as on meshes of more than
+        # Model.WHOLE_MESH_UP_TO cells), which the ranks share out among them
+        case = case[:-len("-cells")]
+        Model.WHOLE_MESH_UP_TO = 0
+        counts = cells_per_tangent()
     build, steps, names, response, options = CASES[case]
     if solver == "petsc-gamg":  # the amg solver's Krylov method with PETSc's GAMG cycle
         solver = PetscAMG(hierarchy="gamg", rtol=float(rtol or 1e-11))
@@ -53,12 +79,19 @@ def main(case: str, solver: str, out: str, rtol: str | None = None) -> None:
     sol = d.solution
     a = gradient(pb, resp, names, method=sg.Adjoint(), solution=sol, **kw)
     rank, size = world()
+    # the cells each rank evaluated for a tangent, at most (every rank's, on rank 0)
+    seen = [max(counts) if counts else 0]
+    if size > 1:
+        from mpi4py import MPI
+
+        seen = MPI.COMM_WORLD.gather(seen[0], root=0)
     if rank == 0:
         np.savez(out, w=np.stack([inc.w for inc in sol.increments]),
                  sens=np.stack([[inc.sens[n] for n in names] for inc in sol.increments]),
                  ddm=np.array([d[n] for n in names]), adjoint=np.array([a[n] for n in names]),
                  value=d.value, ranks=size,
-                 newton=np.array([inc.newton.iterations for inc in sol.increments]))
+                 newton=np.array([inc.newton.iterations for inc in sol.increments]),
+                 cells=len(pb.mesh.cells), seen=np.array(seen))
 
 
 if __name__ == "__main__":

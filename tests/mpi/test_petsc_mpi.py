@@ -2,7 +2,8 @@
 solver with GAMG's cycle): the converged unknowns, the DDM sensitivities and the
 adjoint gradient equal the serial run's, for a frictionless and a frictional
 (path-dependent) 3-D Hertz problem, the 3-D forging (J2 plasticity with
-friction) and two elastic spheres (a frictional mortar pair of two bodies), on 2
+friction; also with its element kernels shared out among the ranks, each rank
+evaluating its own cells) and two elastic spheres (a frictional mortar pair of two bodies), on 2
 and 3 ranks (oversubscribed on a 2-core machine); an interrupted run under
 mpiexec keeps its converged increments' series and leaves no rank's private
 directory. Skipped where the optional MPI install is absent."""
@@ -70,7 +71,8 @@ def case(tmp: Path, name: str, solver: str, ranks: int | None):
 def serial(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("serial")
     return {name: case(tmp, name, "superlu", None) for name in ("frictionless", "friction",
-                                                                 "forging3d", "pairs")}
+                                                                 "forging3d", "forging3d-cells",
+                                                                 "pairs")}
 
 
 def rel(a, b) -> float:
@@ -85,6 +87,8 @@ def rel(a, b) -> float:
     ("frictionless", "petsc-gamg", 2),
     ("forging3d", "petsc", 2),
     ("forging3d", "petsc-amg", 3),
+    ("forging3d-cells", "petsc", 2),
+    ("forging3d-cells", "petsc-amg", 3),
     ("pairs", "petsc", 2),
     ("pairs", "petsc-amg", 3),
 ])
@@ -92,6 +96,10 @@ def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
     ref = serial[name]
     got = case(tmp_path, name, solver, ranks)
     assert int(got["ranks"]) == ranks
+    if name.endswith("-cells"):  # each rank evaluated the element kernels of its own cells
+        n = int(ref["cells"])
+        assert list(ref["seen"]) == [n]
+        assert sorted(got["seen"]) == sorted(np.diff(np.arange(ranks + 1) * n // ranks))
     assert rel(got["w"], ref["w"]) <= 1e-9
     # every increment's DDM sensitivities (path-dependent with friction)
     for k in range(ref["sens"].shape[1]):
@@ -116,6 +124,33 @@ def test_cli_under_mpiexec_writes_once(tmp_path):
     assert sorted(p.name for p in (tmp_path / "mpi").iterdir()) == \
         sorted(p.name for p in (tmp_path / "serial").iterdir())
     assert b["p0"]["computed"] == pytest.approx(a["p0"]["computed"], rel=1e-10)
+
+
+def test_cli_shares_the_cells_and_rank_0_writes_its_series_alone(tmp_path):
+    """``mpiexec -n 2 signorini forging3d --solver petsc`` with the element kernels
+    through the kinds' programs (as on a mesh of more than Model.WHOLE_MESH_UP_TO
+    cells): the ranks share out the cells, and rank 0, which alone writes each
+    increment's VTU file as it converges (the stresses and their sensitivities
+    from the element kernels), evaluates them on every cell by itself (were it to
+    share them, its gathers would meet no other rank's: MPI_ERR_TRUNCATE, a
+    corrupted heap). The outputs equal the serial command's."""
+    entry = ENTRY.replace("from signorini", "from signorini.model.kernels import Model; "
+                          "Model.WHOLE_MESH_UP_TO = 0; from signorini", 1)
+    cli = [sys.executable, "-c", entry, "forging3d", "--mesh", "3x3", "--steps", "3", "--no-fd", "-q"]
+    run(cli + ["--out", str(tmp_path / "serial")])
+    run(launcher(2) + cli + ["--solver", "petsc", "--out", str(tmp_path / "mpi")])
+    a = json.loads((tmp_path / "serial" / "summary.json").read_text())
+    b = json.loads((tmp_path / "mpi" / "summary.json").read_text())
+    assert b["mpi"]["ranks"] == 2 and b["status"] == a["status"] == "converged"
+    assert b["F"] == pytest.approx(a["F"], rel=1e-9)
+    for name, d in a["dF_ddm"].items():
+        assert b["dF_ddm"][name] == pytest.approx(d, rel=1e-9, abs=1e-9 * max(map(abs, a["dF_ddm"].values())))
+    meshio = pytest.importorskip("meshio")
+    last = max(p.name for p in (tmp_path / "serial").glob("forging3d_*.vtu"))
+    x, y = (meshio.read(tmp_path / d / last).cell_data for d in ("serial", "mpi"))
+    assert sorted(x) == sorted(y) and "dcauchy_stress_dsigma_y" in x
+    for key in x:
+        assert rel(y[key][0], x[key][0]) <= 1e-9 if np.any(x[key][0]) else not np.any(y[key][0]), key
 
 
 def test_iterative_petsc_options_that_fail_say_so(tmp_path):

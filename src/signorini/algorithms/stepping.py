@@ -259,6 +259,8 @@ class _LoadPath:
                                  symmetric_candidate=not model.has_history,
                                  analysis=lambda: model.analysis_tangent(params),
                                  reuse=options.reuse_factor)
+        # under mpiexec: each rank evaluates the element kernels of its own cells
+        stack.enter_context(model.sharing(getattr(self.lin.solver, "communicator", None)))
         self.ddm = ddm_for(model, names)
         self.weights = model.convergence_weights(params)
         self.sol = sol = Solution(model, dict(problem.params), names)

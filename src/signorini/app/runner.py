@@ -242,7 +242,9 @@ def series_as_converged(path: Path, label: str = "base", on: bool = True):
         if name != label or sol is None or len(sol.increments) != n or "series_error" in _RUN:
             return
         try:
-            with timing.phase("output"):
+            # rank 0 alone writes: its element kernels on every cell (the other ranks
+            # are not in this call: model.sharing)
+            with timing.phase("output"), sol.model.alone():
                 series.add(sol)
         except Exception as e:  # noqa: BLE001 - the solve goes on; the end writes the series
             _RUN["series_error"] = str(e)

@@ -16,6 +16,10 @@ class LinearSolver:
     """Base class: ``factorize(K, symmetric=False) -> Factor``."""
 
     name = "?"
+    #: the mpi4py communicator of the ranks that run each solve together (the PETSc
+    #: solvers under mpiexec), over which a model shares out its cells; None: this
+    #: process alone
+    communicator = None
 
     def factorize(self, K: sp.spmatrix, symmetric: bool = False) -> Factor:
         raise NotImplementedError

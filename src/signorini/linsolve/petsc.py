@@ -89,6 +89,7 @@ def _on_ranks(solver, options: str) -> None:
     solver.options, solver._pairs = options, PetscSolver._parse(options)
     solver.comm = solver.PETSc.COMM_WORLD
     solver.rank, solver.size = solver.comm.getRank(), solver.comm.getSize()
+    solver.communicator = solver.comm.tompi4py() if solver.size > 1 else None
 
 
 def split_rows(n: int, size: int) -> np.ndarray:

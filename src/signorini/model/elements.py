@@ -13,13 +13,59 @@ model's layout, kernels and compiled programs)."""
 
 from __future__ import annotations
 
+import contextlib
+import threading
+
 import numpy as np
 
 from .._jax import jax
+from .share import CellShare
 
 
 class ModelElements:
     """The element part of residual, tangent and update, and their derivatives."""
+
+    #: (the thread that entered :meth:`sharing`, this rank's share of the cells)
+    _share: tuple | None = None
+
+    @contextlib.contextmanager
+    def sharing(self, comm):
+        """While inside, each rank of ``comm`` (an mpi4py communicator, or None: no
+        effect) evaluates the element kernels of its own block of cells, and every
+        rank gets every cell's outputs (:mod:`signorini.model.share`). Only where the
+        kinds' programs evaluate them (``by_kind``) and every rank has cells, and
+        only on the calling thread: every rank must make the same calls in the same
+        order, which the solve's thread does and another (an interrupt's report on
+        rank 0) does not; :meth:`alone` lifts it for what one rank computes alone."""
+        if comm is None or comm.Get_size() < 2 or not self.by_kind or len(self.conn) < comm.Get_size():
+            yield
+            return
+        old, self._share = self._share, (threading.get_ident(), CellShare(comm, len(self.conn)))
+        try:
+            yield
+        finally:
+            self._share = old
+
+    @contextlib.contextmanager
+    def alone(self):
+        """While inside, every cell on this rank alone, also within :meth:`sharing`
+        (rank 0's outputs as the increments converge)."""
+        old, self._share = self._share, None
+        try:
+            yield
+        finally:
+            self._share = old
+
+    @property
+    def share(self) -> CellShare | None:
+        """This rank's share of the cells on this thread, or None (every cell)."""
+        s = self._share
+        return None if s is None or s[0] != threading.get_ident() else s[1]
+
+    def _kernels(self):
+        """The element kind's programs, on this rank's cells while :meth:`sharing`."""
+        share = self.share
+        return self.cells if share is None else share.over(self.cells)
 
     def _cell_arrays(self, w, params, state_n):
         """(u_e (n, k, dim), X_e (n, k, dim), mp, h_e or None) of every cell (NumPy)."""
@@ -52,13 +98,13 @@ class ModelElements:
     def element_forces(self, w, params, state_n=None):
         """(internal forces (n_dof,), updated Gauss-point history or None)."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
-        re, h = self.cells("update", (0, 1), (ue, Xe, he), mp)
+        re, h = self._kernels()("update", (0, 1), (ue, Xe, he), mp)
         return self.scatter(re), (h if self.n_state else None)
 
     def element_history(self, w, params, state_n):
         """The updated Gauss-point history (n, 4, n_state) after convergence at w."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
-        return self.cells("update", (0, 1), (ue, Xe, he), mp)[1]  # one program for both
+        return self._kernels()("update", (0, 1), (ue, Xe, he), mp)[1]  # one program for both
 
     def element_tangents(self, w, params, state_n=None):
         """(internal forces (n_dof,), element tangents (n, 8, 8))."""
@@ -67,14 +113,15 @@ class ModelElements:
     def element_tangents_start(self, w, params, state_n=None):
         """Dispatch :meth:`element_tangents` (JAX computes while the caller goes on)."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
-        return self.cells.start("tangent", (0, 1), (ue, Xe, he), mp)
+        return self._kernels().start("tangent", (0, 1), (ue, Xe, he), mp)
 
     def element_tangents_finish(self, pending):
-        re, Ke = self.cells.finish(pending)
+        re, Ke = self._kernels().finish(pending)
         return self.scatter(re), Ke
 
     def _element_stiffness_cells(self, params) -> np.ndarray:
-        """K_e (n, 8, 8) of a linear body: the tangent at u = 0."""
+        """K_e (n, 8, 8) of a linear body: the tangent at u = 0 (every cell on every
+        rank: once per parameter values, and kept, also by a rank's own outputs)."""
         ue, Xe, mp, _ = self._cell_arrays(np.zeros(self.n_dof), params, None)
         return self.cells("tangent", (1,), (ue, Xe, None), mp)[0]
 
@@ -94,12 +141,12 @@ class ModelElements:
         displacements' whenever w_dot is given, the coordinates' when the model has
         shape parameters, the material values' always, the history's when the
         material has one (zero when the state's sensitivity is not given)."""
-        return self.cells.jvp(name, outs, *self._jvp_arrays(w, params, state_n, w_dot, e, state_dot_n))
+        return self._kernels().jvp(name, outs, *self._jvp_arrays(w, params, state_n, w_dot, e, state_dot_n))
 
     def element_value_jvp(self, name: str, outs: tuple, w, params, state_n, w_dot, e, state_dot_n):
         """(the element outputs ``outs``, their JVP as :meth:`element_jvp`) from one
         program of the element kind (the outputs computed once)."""
-        return self.cells.value_jvp(name, outs, *self._jvp_arrays(w, params, state_n, w_dot, e,
+        return self._kernels().value_jvp(name, outs, *self._jvp_arrays(w, params, state_n, w_dot, e,
                                                                    state_dot_n))
 
     def _jvp_arrays(self, w, params, state_n, w_dot, e, state_dot_n):
@@ -122,7 +169,7 @@ class ModelElements:
         history (n, 4, n_state) or None) of the element outputs ``outs`` of kernel
         ``name`` with per-cell cotangents ``cot`` (one per output)."""
         ue, Xe, mp, he = self._cell_arrays(w, params, state_n)
-        (du, dXe, dh), dmp = self.cells.vjp(name, outs, (ue, Xe, he), mp, cot)
+        (du, dXe, dh), dmp = self._kernels().vjp(name, outs, (ue, Xe, he), mp, cot)
         w_bar = self.scatter(du.reshape(len(self.conn), -1))
         p_bar = self._parameter_vjp(params, self._scatter_nodes(dXe), dmp)
         return w_bar, p_bar, dh

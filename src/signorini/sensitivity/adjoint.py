@@ -148,6 +148,12 @@ class Adjoint:
         params = {k: v for k, v in pe.items() if k != NODES}
         lin = TangentSolver(for_model(get_solver(solver), m), symmetric_candidate=not m.has_history,
                             analysis=lambda: m.analysis_tangent(params))
+        # under mpiexec: each rank evaluates the element kernels of its own cells
+        with m.sharing(getattr(lin.solver, "communicator", None)):
+            return self._sweep(sol, pe, selected, lin, params)
+
+    def _sweep(self, sol, pe, selected, lin, params):
+        m = self.model
         grad = jax.tree_util.tree_map(jnp.zeros_like, pe)
         G = 0.0
         s_bar = None  # cotangent of the state after increment n

@@ -1,0 +1,103 @@
+"""A model's cells shared out among MPI ranks (docs/parallel.md).
+
+Under ``mpiexec`` with a PETSc solver every rank runs the same solve. The element
+kernels (:mod:`signorini.model.cells`: forces, tangents, history updates, their
+JVPs and VJPs) are then each rank's on its own contiguous block of cells, and one
+gather gives every rank every cell's outputs, so that what follows (the assembly,
+Newton's step, the DDM's columns) is again the same on every rank, bit for bit.
+
+The communicator is an mpi4py one, handed in by the solver
+(:attr:`signorini.linsolve.LinearSolver.communicator`); this module does not
+import MPI. Every rank must make the same calls in the same order: the solve does
+(the same program on the same data), and what one rank alone computes (rank 0's
+outputs) evaluates its kernels whole (``whole=True``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jax import jax
+
+tree_map = jax.tree_util.tree_map
+
+
+def blocks(n: int, size: int) -> np.ndarray:
+    """(size + 1,) starts of ``size`` contiguous blocks of n items, as even as can be."""
+    return (np.arange(size + 1, dtype=np.int64) * n) // size
+
+
+class CellShare:
+    """This rank's block of a model's n cells, and the collectives that give
+    every rank the outputs of all of them."""
+
+    def __init__(self, comm, n: int):
+        self.comm = comm
+        self.rank, self.size = comm.Get_rank(), comm.Get_size()
+        self.n = int(n)
+        self.starts = blocks(self.n, self.size)
+        self.lo, self.hi = int(self.starts[self.rank]), int(self.starts[self.rank + 1])
+
+    def local(self, tree, axis: int = 0):
+        """This rank's cells of every array of ``tree`` (cells on ``axis``; None kept)."""
+        cut = (slice(None),) * axis + (slice(self.lo, self.hi),)
+        return tree_map(lambda a: np.asarray(a)[cut], tree)
+
+    def gather(self, tree, axis: int = 0):
+        """Every rank's cells of every array of ``tree`` (this rank's on ``axis``),
+        in the cells' order, on every rank."""
+        return tree_map(lambda a: self._gather(np.asarray(a), axis), tree)
+
+    def _gather(self, a: np.ndarray, axis: int) -> np.ndarray:
+        a = np.moveaxis(a, axis, 0)
+        rest = a.shape[1:]
+        per = int(np.prod(rest, dtype=np.int64))
+        counts = np.diff(self.starts) * per
+        out = np.empty((self.n,) + rest, dtype=a.dtype)
+        self.comm.Allgatherv(np.ascontiguousarray(a), [out, (counts, self.starts[:-1] * per)])
+        return np.moveaxis(out, 0, axis)
+
+    def total(self, tree):
+        """The sum over the ranks of every array of ``tree``, added in the ranks'
+        order on every rank (the same result everywhere, bit for bit)."""
+        parts = self.comm.allgather(tree_map(np.asarray, tree))
+        return tree_map(lambda *a: sum(a[1:], a[0]), *parts)
+
+    def over(self, kernels) -> SharedKernels:
+        """``kernels`` (:class:`~signorini.model.chunks.Chunked`) run on this rank's cells."""
+        return SharedKernels(kernels, self)
+
+
+class SharedKernels:
+    """The interface of :class:`~signorini.model.chunks.Chunked` (call, start and
+    finish, jvp, value_jvp, vjp) over this rank's cells, every output gathered."""
+
+    def __init__(self, kernels, share: CellShare):
+        self.kernels, self.share = kernels, share
+
+    def __call__(self, name: str, outs: tuple, items: tuple, shared):
+        return self.finish(self.start(name, outs, items, shared))
+
+    def start(self, name: str, outs: tuple, items: tuple, shared):
+        return self.kernels.start(name, outs, self.share.local(items), shared)
+
+    def finish(self, pending):
+        return self.share.gather(self.kernels.finish(pending))
+
+    def jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
+        if all(d is None for d in dots):
+            return None
+        s = self.share
+        d = tuple(s.local(dots[:-1], axis=1)) + (dots[-1],)
+        return s.gather(self.kernels.jvp(name, outs, s.local(items), shared, d), axis=1)
+
+    def value_jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
+        s = self.share
+        d = tuple(s.local(dots[:-1], axis=1)) + (dots[-1],)
+        values, derivatives = self.kernels.value_jvp(name, outs, s.local(items), shared, d)
+        return s.gather(values), s.gather(derivatives, axis=1)
+
+    def vjp(self, name: str, outs: tuple, items: tuple, shared, cot: tuple):
+        s = self.share
+        items_bar, shared_bar = self.kernels.vjp(name, outs, s.local(items), shared, s.local(cot))
+        return s.gather(items_bar), s.total(shared_bar)
