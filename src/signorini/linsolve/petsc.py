@@ -92,6 +92,20 @@ def _on_ranks(solver, options: str) -> None:
     solver.communicator = solver.comm.tompi4py() if solver.size > 1 else None
 
 
+def collect(solver) -> None:
+    """Free the PETSc objects of the solver's earlier tangents that Python has let go.
+    petsc4py does not destroy an object of a parallel communicator when Python drops
+    it (destroying is collective, Python's collection is not): it waits on PETSc's
+    garbage list until ``garbage_cleanup``, collective, called here where every rank
+    comes in the same order (each factorisation, each cycle's set-up). Without it
+    every factorisation's MUMPS factors stayed until the end of the run (75 MB each
+    on 27k unknowns; the 3-D forging's 8,000 hexahedra on 2 ranks reached 13 GB a
+    rank and were killed)."""
+    cleanup = getattr(solver.PETSc, "garbage_cleanup", None)
+    if cleanup is not None:
+        cleanup(solver.comm)
+
+
 def split_rows(n: int, size: int) -> np.ndarray:
     """(size + 1,) starts of the ranks' contiguous blocks of n rows, as even as can be."""
     return (np.arange(size + 1, dtype=np.int64) * n) // size
@@ -148,6 +162,7 @@ class PetscSolver(LinearSolver):
     # ---------------------------------------------------------------- factor
     def factorize(self, K, symmetric: bool = False) -> Factor:
         PETSc = self.PETSc
+        collect(self)
         K = sp.csr_matrix(K)
         n = K.shape[0]
         starts = split_rows(n, self.size)
@@ -310,6 +325,7 @@ class PetscAMG(AMGKrylov):
 
     def _petsc_cycle(self, full, B):
         PETSc = self.PETSc
+        collect(self)
         d = self.structure.dim
         ksp = PETSc.KSP().create(comm=self.comm)
         ksp.setType("preonly")
