@@ -18,13 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._jax import jax
+from ..linsolve.petsc import split_rows
 
 tree_map = jax.tree_util.tree_map
-
-
-def blocks(n: int, size: int) -> np.ndarray:
-    """(size + 1,) starts of ``size`` contiguous blocks of n items, as even as can be."""
-    return (np.arange(size + 1, dtype=np.int64) * n) // size
 
 
 class CellShare:
@@ -35,7 +31,7 @@ class CellShare:
         self.comm = comm
         self.rank, self.size = comm.Get_rank(), comm.Get_size()
         self.n = int(n)
-        self.starts = blocks(self.n, self.size)
+        self.starts = split_rows(self.n, self.size)  # as the solver splits rows
         self.lo, self.hi = int(self.starts[self.rank]), int(self.starts[self.rank + 1])
 
     def local(self, tree, axis: int = 0):
