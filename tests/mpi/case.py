@@ -4,7 +4,9 @@ every increment, their DDM sensitivities, and the adjoint and DDM gradients of
 the case's response (the contact work unless it names another); the other ranks
 compute the same and save nothing. A case named ``NAME-cells`` evaluates the
 element kernels through the kinds' programs (as on large meshes), which the ranks
-share out, and saves the cells each rank evaluated for a tangent."""
+and the contact kernels through theirs, which the ranks share out, and saves the
+cells and contact nodes each rank evaluated for a tangent, the contact nodes
+closed at the end and the rows of the contact nodes' unknowns in the tangent."""
 
 import sys
 
@@ -17,6 +19,7 @@ from signorini.linsolve.petsc import PetscAMG, PetscSolver, world
 from signorini.model import chunks
 from signorini.model.cells import CellKernels
 from signorini.model.kernels import Model
+from signorini.model.nodes import NodeKernels
 from signorini.problems import forging3d as f3
 from signorini.problems.hertz3d import hertz3d_problem
 from signorini.problems.spheres import spheres_problem
@@ -41,15 +44,17 @@ CASES = {
 }
 
 
-def cells_per_tangent() -> list[int]:
-    """Count the cells of every element-tangent evaluation of this process (the
-    kind's programs, Chunked.start): a rank that shares out the cells counts its own."""
-    counts = []
+def items_per_tangent() -> dict[str, list[int]]:
+    """Count the cells and the contact nodes of every element- and contact-tangent
+    evaluation of this process (the kinds' programs, Chunked.start): a rank that
+    shares them out counts its own."""
+    counts = {"cells": [], "nodes": []}
     start = chunks.Chunked.start
 
     def counted(self, name, outs, items, shared):
-        if name == "tangent" and isinstance(self, CellKernels):
-            counts.append(chunks._count(items))
+        kind = "cells" if isinstance(self, CellKernels) else "nodes" if isinstance(self, NodeKernels) else None
+        if name == "tangent" and kind is not None:
+            counts[kind].append(chunks._count(items))
         return start(self, name, outs, items, shared)
     chunks.Chunked.start = counted
     return counts
@@ -58,11 +63,11 @@ def cells_per_tangent() -> list[int]:
 def main(case: str, solver: str, out: str, rtol: str | None = None) -> None:
     counts = None
     if case.endswith("-cells"):
-        # the element kernels through the kinds' programs (as on meshes of more than
-        # Model.WHOLE_MESH_UP_TO cells), which the ranks share out among them
+        # the element and contact kernels through the kinds' programs (as on meshes of
+        # more than Model.WHOLE_MESH_UP_TO cells), which the ranks share out among them
         case = case[:-len("-cells")]
         Model.WHOLE_MESH_UP_TO = 0
-        counts = cells_per_tangent()
+        counts = items_per_tangent()
     build, steps, names, response, options = CASES[case]
     if solver == "petsc-gamg":  # the amg solver's Krylov method with PETSc's GAMG cycle
         solver = PetscAMG(hierarchy="gamg", rtol=float(rtol or 1e-11))
@@ -79,20 +84,27 @@ def main(case: str, solver: str, out: str, rtol: str | None = None) -> None:
     sol = d.solution
     a = gradient(pb, resp, names, method=sg.Adjoint(), solution=sol, **kw)
     rank, size = world()
-    # the cells each rank evaluated for a tangent, at most (every rank's, on rank 0)
-    seen = [max(counts) if counts else 0]
+    # the cells and contact nodes each rank evaluated for a tangent, at most (every
+    # rank's, on rank 0)
+    seen = [[max(v) if v else 0 for v in counts.values()] if counts else [0, 0]]
     if size > 1:
         from mpi4py import MPI
 
         seen = MPI.COMM_WORLD.gather(seen[0], root=0)
+    m, surface = sol.model, sol.model.surfaces[0]
+    closed = np.asarray(sol.contact(-1)["p_N"]) > 0
+    # the rows of the free-free tangent (the matrix the PETSc solvers split among the
+    # ranks in contiguous blocks) that hold a contact node's unknowns
+    rows = np.flatnonzero(np.isin(m.free, surface.dofs.ravel()))
     if rank == 0:
+        seen = np.array(seen)
         np.savez(out, w=np.stack([inc.w for inc in sol.increments]),
                  sens=np.stack([[inc.sens[n] for n in names] for inc in sol.increments]),
                  ddm=np.array([d[n] for n in names]), adjoint=np.array([a[n] for n in names]),
                  value=d.value, ranks=size,
                  newton=np.array([inc.newton.iterations for inc in sol.increments]),
-                 cells=len(pb.mesh.cells), seen=np.array(seen))
-
+                 cells=len(pb.mesh.cells), seen=seen[:, 0], nodes=surface.nodes.size,
+                 seen_nodes=seen[:, 1], closed=closed, contact_rows=rows, n_rows=len(m.free))
 
 if __name__ == "__main__":
     main(*sys.argv[1:5])

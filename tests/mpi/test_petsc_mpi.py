@@ -2,13 +2,14 @@
 solver with GAMG's cycle): the converged unknowns, the DDM sensitivities and the
 adjoint gradient equal the serial run's, for a frictionless and a frictional
 (path-dependent) 3-D Hertz problem, the 3-D forging (J2 plasticity with
-friction; also with its element kernels shared out among the ranks, each rank
-evaluating its own cells) and two elastic spheres (a frictional mortar pair of two bodies), on 2
+friction; also with its element and contact kernels shared out among the
+ranks, each rank evaluating its own cells and contact nodes) and two elastic spheres (a frictional mortar pair of two bodies), on 2
 and 3 ranks (oversubscribed on a 2-core machine); an interrupted run under
 mpiexec keeps its converged increments' series and leaves no rank's private
 directory. Skipped where the optional MPI install is absent."""
 
 import importlib.util
+import itertools
 import json
 import os
 import shutil
@@ -96,10 +97,29 @@ def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
     ref = serial[name]
     got = case(tmp_path, name, solver, ranks)
     assert int(got["ranks"]) == ranks
-    if name.endswith("-cells"):  # each rank evaluated the element kernels of its own cells
-        n = int(ref["cells"])
-        assert list(ref["seen"]) == [n]
-        assert sorted(got["seen"]) == sorted(np.diff(np.arange(ranks + 1) * n // ranks))
+    if name.endswith("-cells"):
+        # each rank evaluated the element kernels of its own cells and the contact
+        # kernels of its own contact nodes
+        for key, count in (("seen", "cells"), ("seen_nodes", "nodes")):
+            n = int(ref[count])
+            assert list(ref[key]) == [n]
+            assert list(got[key]) == list(np.diff(np.arange(ranks + 1) * n // ranks)), key
+        # the contact zone is split across the ranks: the closed nodes lie in the
+        # blocks of several ranks' contact kernels
+        blocks = np.arange(ranks + 1) * int(ref["nodes"]) // ranks
+        closed = [int(np.sum(ref["closed"][a:b])) for a, b in itertools.pairwise(blocks)]
+        assert list(got["closed"]) == list(ref["closed"])
+        assert sum(c > 0 for c in closed) >= 2, closed
+    if solver == "petsc":
+        # the rows of the tangent MUMPS factorises (contiguous blocks, one a rank) that
+        # hold a contact node's unknowns: on the 3-D Hertz problem all in the last
+        # rank's block (the others own no contact node), on the forging in every one
+        blocks = np.arange(ranks + 1) * int(ref["n_rows"]) // ranks
+        owned = np.histogram(ref["contact_rows"], blocks)[0]
+        if name == "friction":
+            assert list(owned[:-1]) == [0] * (ranks - 1) and owned[-1] > 0, owned
+        elif name.startswith("forging3d"):
+            assert min(owned) > 0, owned
     assert rel(got["w"], ref["w"]) <= 1e-9
     # every increment's DDM sensitivities (path-dependent with friction)
     for k in range(ref["sens"].shape[1]):
@@ -151,6 +171,16 @@ def test_cli_shares_the_cells_and_rank_0_writes_its_series_alone(tmp_path):
     assert sorted(x) == sorted(y) and "dcauchy_stress_dsigma_y" in x
     for key in x:
         assert rel(y[key][0], x[key][0]) <= 1e-9 if np.any(x[key][0]) else not np.any(y[key][0]), key
+
+
+def test_a_rank_with_no_item_of_its_own_takes_part_with_nothing():
+    """Two contact nodes and two cells shared out among 3 ranks: rank 0 owns none
+    (it evaluates a stand-in item and drops it), and every output (contact and
+    element values, JVPs, VJPs with the material values' cotangents summed over the
+    ranks) equals the kernels' evaluated alone."""
+    out = run(launcher(3) + [sys.executable, str(HERE / "shares.py")]).stdout.split()
+    assert out[0] == "shares" and out[2:] == ["0", "1", "1"], out
+    assert float(out[1]) <= 1e-13
 
 
 @pytest.mark.parametrize("ranks", [1, 2])

@@ -51,6 +51,13 @@ class ModelContactNodes:
         geometry: one program per model for both)."""
         return np.asarray(self.contact_geometry(params, t)[0])
 
+    def _node_kernels(self, i: int):
+        """Surface i's contact kind's programs, on this rank's block of its nodes
+        while :meth:`~signorini.model.elements.ModelElements.sharing`."""
+        shares = self._shares()
+        kernels = self.node_kernels[i]
+        return kernels if shares is None else shares[1][i].over(kernels)
+
     def _node_items(self, i: int, w, geometry, state_n, history: bool = True, cases=None):
         """(items, shared) of surface i's nodes for its contact kind's programs
         (``cases``: the case flags of every surface, held fixed, or None)."""
@@ -104,7 +111,7 @@ class ModelContactNodes:
             dots, sdots = self._node_dots(i, w_dot, geometry_dot, state_dot_n)
             dots = dots[:5] + ((dots[5],) if items[5] is not None else (None,))
             dots += (None,) * (len(items) - len(dots))
-            out.append(self.node_kernels[i].jvp(name, outs, items, shared, dots + (sdots,)))
+            out.append(self._node_kernels(i).jvp(name, outs, items, shared, dots + (sdots,)))
         return np.asarray(geometry_dot[0]), out
 
     def contact_pseudo_load(self, w, params, t, state_n, w_dot, e, state_dot_n, cases):
@@ -130,7 +137,7 @@ class ModelContactNodes:
         blocks = []
         for i, s in enumerate(self.surfaces):
             items, shared = self._node_items(i, w, geometry, state_n)
-            Kc, rc = self.node_kernels[i]("tangent", (0, 1), items, shared)
+            Kc, rc = self._node_kernels(i)("tangent", (0, 1), items, shared)
             R += np.bincount(s.dofs.ravel(), weights=rc.ravel(), minlength=self.n_dof)
             blocks.append(Kc)
         return R, blocks
@@ -142,7 +149,7 @@ class ModelContactNodes:
         R = -np.asarray(fext)
         for i, s in enumerate(self.surfaces):
             items, shared = self._node_items(i, w, geometry, state_n)
-            (rc,) = self.node_kernels[i]("residual", (0,), items, shared)
+            (rc,) = self._node_kernels(i)("residual", (0,), items, shared)
             R += np.bincount(s.dofs.ravel(), weights=rc.ravel(), minlength=self.n_dof)
         return R
 
@@ -158,7 +165,7 @@ class ModelContactNodes:
                 out.append(None)
                 continue
             items, shared = self._node_items(i, w, geometry, state_n)
-            out.append(self.node_kernels[i]("cases", (0,), items, shared)[0])
+            out.append(self._node_kernels(i)("cases", (0,), items, shared)[0])
         return tuple(out)
 
     def _switch_fields_eager(self, w, params, t, state_n=None):
@@ -182,5 +189,5 @@ class ModelContactNodes:
         w = np.asarray(w)
         geometry = self.contact_geometry(params, t)[1]
         items, shared = self._node_items(surface, w, geometry, None, history=False)
-        g, pN, pT = self.node_kernels[surface]("fields", (0, 1, 2), items, shared)
+        g, pN, pT = self._node_kernels(surface)("fields", (0, 1, 2), items, shared)
         return {"gap": g, "p_N": pN, "p_T": pT, "area": items[2]}

@@ -25,22 +25,26 @@ from .share import CellShare
 class ModelElements:
     """The element part of residual, tangent and update, and their derivatives."""
 
-    #: (the thread that entered :meth:`sharing`, this rank's share of the cells)
+    #: (the thread that entered :meth:`sharing`, (this rank's share of the cells,
+    #: (its share of each contact surface's nodes)))
     _share: tuple | None = None
 
     @contextlib.contextmanager
     def sharing(self, comm):
         """While inside, each rank of ``comm`` (an mpi4py communicator, or None: no
-        effect) evaluates the element kernels of its own block of cells, and every
-        rank gets every cell's outputs (:mod:`signorini.model.share`). Only where the
-        kinds' programs evaluate them (``by_kind``) and every rank has cells, and
-        only on the calling thread: every rank must make the same calls in the same
-        order, which the solve's thread does and another (an interrupt's report on
-        rank 0) does not; :meth:`alone` lifts it for what one rank computes alone."""
-        if comm is None or comm.Get_size() < 2 or not self.by_kind or len(self.conn) < comm.Get_size():
+        effect) evaluates the element kernels of its own block of cells and the
+        contact kernels of its own block of each surface's contact nodes, and every
+        rank gets every cell's and node's outputs (:mod:`signorini.model.share`).
+        Only where the kinds' programs evaluate them (``by_kind``), and only on the
+        calling thread: every rank must make the same calls in the same order,
+        which the solve's thread does and another (an interrupt's report on rank 0)
+        does not; :meth:`alone` lifts it for what one rank computes alone."""
+        if comm is None or comm.Get_size() < 2 or not self.by_kind:
             yield
             return
-        old, self._share = self._share, (threading.get_ident(), CellShare(comm, len(self.conn)))
+        shares = (CellShare(comm, len(self.conn)),
+                  tuple(CellShare(comm, s.nodes.size) for s in self.surfaces))
+        old, self._share = self._share, (threading.get_ident(), shares)
         try:
             yield
         finally:
@@ -48,19 +52,24 @@ class ModelElements:
 
     @contextlib.contextmanager
     def alone(self):
-        """While inside, every cell on this rank alone, also within :meth:`sharing`
-        (rank 0's outputs as the increments converge)."""
+        """While inside, every cell and contact node on this rank alone, also within
+        :meth:`sharing` (rank 0's outputs as the increments converge)."""
         old, self._share = self._share, None
         try:
             yield
         finally:
             self._share = old
 
+    def _shares(self) -> tuple | None:
+        """(the cells' share, (each surface's nodes' share)) on this thread, or None."""
+        s = self._share
+        return None if s is None or s[0] != threading.get_ident() else s[1]
+
     @property
     def share(self) -> CellShare | None:
         """This rank's share of the cells on this thread, or None (every cell)."""
-        s = self._share
-        return None if s is None or s[0] != threading.get_ident() else s[1]
+        s = self._shares()
+        return None if s is None else s[0]
 
     def _kernels(self):
         """The element kind's programs, on this rank's cells while :meth:`sharing`."""

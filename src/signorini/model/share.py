@@ -1,10 +1,14 @@
-"""A model's cells shared out among MPI ranks (docs/parallel.md).
+"""A model's cells and contact nodes shared out among MPI ranks (docs/parallel.md).
 
 Under ``mpiexec`` with a PETSc solver every rank runs the same solve. The element
 kernels (:mod:`signorini.model.cells`: forces, tangents, history updates, their
-JVPs and VJPs) are then each rank's on its own contiguous block of cells, and one
-gather gives every rank every cell's outputs, so that what follows (the assembly,
-Newton's step, the DDM's columns) is again the same on every rank, bit for bit.
+JVPs and VJPs) are then each rank's on its own contiguous block of cells, the
+contact kernels (:mod:`signorini.model.nodes`: tangents, residuals, case flags,
+fields, their JVPs) each rank's on its own block of every surface's contact
+nodes, and one gather gives every rank every item's outputs, so that what follows
+(the assembly, Newton's step, the DDM's columns) is again the same on every rank,
+bit for bit. A rank whose block is empty (more ranks than a surface's nodes)
+takes part in the gathers with nothing.
 
 The communicator is an mpi4py one, handed in by the solver
 (:attr:`signorini.linsolve.LinearSolver.communicator`); this module does not
@@ -24,8 +28,8 @@ tree_map = jax.tree_util.tree_map
 
 
 class CellShare:
-    """This rank's block of a model's n cells, and the collectives that give
-    every rank the outputs of all of them."""
+    """This rank's block of a model's n cells (or of a surface's n contact nodes),
+    and the collectives that give every rank the outputs of all of them."""
 
     def __init__(self, comm, n: int):
         self.comm = comm
@@ -36,7 +40,26 @@ class CellShare:
 
     def local(self, tree, axis: int = 0):
         """This rank's cells of every array of ``tree`` (cells on ``axis``; None kept)."""
-        cut = (slice(None),) * axis + (slice(self.lo, self.hi),)
+        return self._cut(tree, axis, self.lo, self.hi)
+
+    @property
+    def empty(self) -> bool:
+        """Whether this rank's block has no cell."""
+        return self.hi == self.lo
+
+    def run(self, tree, axis: int = 0):
+        """The cells this rank evaluates: its own, or, when it has none, the first
+        cell of all (the programs take no empty chunk; :meth:`own` drops its outputs)."""
+        return self._cut(tree, axis, 0, 1) if self.empty else self.local(tree, axis)
+
+    def own(self, tree, axis: int = 0):
+        """The outputs of :meth:`run`'s cells that are this rank's (none when its block
+        is empty)."""
+        return self._cut(tree, axis, 0, 0) if self.empty else tree
+
+    @staticmethod
+    def _cut(tree, axis: int, lo: int, hi: int):
+        cut = (slice(None),) * axis + (slice(lo, hi),)
         return tree_map(lambda a: np.asarray(a)[cut], tree)
 
     def gather(self, tree, axis: int = 0):
@@ -60,7 +83,8 @@ class CellShare:
         return tree_map(lambda *a: sum(a[1:], a[0]), *parts)
 
     def over(self, kernels) -> SharedKernels:
-        """``kernels`` (:class:`~signorini.model.chunks.Chunked`) run on this rank's cells."""
+        """``kernels`` (:class:`~signorini.model.chunks.Chunked`: the cells' or the
+        contact nodes') run on this rank's cells."""
         return SharedKernels(kernels, self)
 
 
@@ -75,25 +99,33 @@ class SharedKernels:
         return self.finish(self.start(name, outs, items, shared))
 
     def start(self, name: str, outs: tuple, items: tuple, shared):
-        return self.kernels.start(name, outs, self.share.local(items), shared)
+        return self.kernels.start(name, outs, self.share.run(items), shared)
 
     def finish(self, pending):
-        return self.share.gather(self.kernels.finish(pending))
+        s = self.share
+        return s.gather(s.own(self.kernels.finish(pending)))
+
+    def _dots(self, dots: tuple) -> tuple:
+        """This rank's part of the items' tangents (k, n, ...); the shared values' whole."""
+        return tuple(self.share.run(dots[:-1], axis=1)) + (dots[-1],)
 
     def jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
         if all(d is None for d in dots):
             return None
         s = self.share
-        d = tuple(s.local(dots[:-1], axis=1)) + (dots[-1],)
-        return s.gather(self.kernels.jvp(name, outs, s.local(items), shared, d), axis=1)
+        out = self.kernels.jvp(name, outs, s.run(items), shared, self._dots(dots))
+        return s.gather(s.own(out, axis=1), axis=1)
 
     def value_jvp(self, name: str, outs: tuple, items: tuple, shared, dots: tuple):
         s = self.share
-        d = tuple(s.local(dots[:-1], axis=1)) + (dots[-1],)
-        values, derivatives = self.kernels.value_jvp(name, outs, s.local(items), shared, d)
-        return s.gather(values), s.gather(derivatives, axis=1)
+        values, derivatives = self.kernels.value_jvp(name, outs, s.run(items), shared,
+                                                     self._dots(dots))
+        return s.gather(s.own(values)), s.gather(s.own(derivatives, axis=1), axis=1)
 
     def vjp(self, name: str, outs: tuple, items: tuple, shared, cot: tuple):
         s = self.share
-        items_bar, shared_bar = self.kernels.vjp(name, outs, s.local(items), shared, s.local(cot))
-        return s.gather(items_bar), s.total(shared_bar)
+        cot = s.run(cot)
+        if s.empty:  # the stand-in cell adds nothing to the shared values' cotangents
+            cot = tree_map(np.zeros_like, cot)
+        items_bar, shared_bar = self.kernels.vjp(name, outs, s.run(items), shared, cot)
+        return s.gather(s.own(items_bar)), s.total(shared_bar)
