@@ -183,6 +183,21 @@ def test_a_rank_with_no_item_of_its_own_takes_part_with_nothing():
     assert float(out[1]) <= 1e-13
 
 
+@pytest.mark.parametrize("ratio,verdict", [(0.6, "refused"), (0.3, "passed")])
+def test_the_size_guard_counts_the_ranks_of_a_machine_and_decides_once(ratio, verdict):
+    """Two ranks on one machine, each holding a model: the guard counts a rank on half
+    the machine's memory, and on the least of any rank's, so both take the same
+    decision. Told M and 2 M bytes available, M = the estimate E / ``ratio``: at 0.6
+    each would have passed alone (0.85 M = 1.42 E and 2.83 E) and both refuse (a
+    rank's share: 0.85 M / 2 = 0.71 E); at 0.3 both pass (0.85 M / 2 = 1.42 E)."""
+    out = run(launcher(2) + [sys.executable, str(HERE / "guard.py"), str(ratio)]).stdout
+    lines = sorted(line for line in out.splitlines() if line.startswith("guard "))
+    assert [line.split()[:3] for line in lines] == [["guard", "0", verdict], ["guard", "1", verdict]]
+    if verdict == "refused":
+        assert "on each rank" in lines[0] and "2 ranks share a machine" in lines[0], lines[0]
+        assert lines[0].split(" ", 3)[3] == lines[1].split(" ", 3)[3]  # the same message
+
+
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_a_dropped_factorisation_frees_its_memory(ranks):
     """petsc4py leaves an object of a parallel communicator that Python drops on

@@ -13,6 +13,7 @@ import logging
 import os
 
 from ..errors import ResourceError
+from .petsc import per_rank_memory
 from .select import get_solver
 
 log = logging.getLogger("signorini")
@@ -42,6 +43,8 @@ _MODELS = {
     ("amg", 2): (0.5, 1.2e-5, 1.0),
     ("amg", 3): (0.5, 1.2e-5, 1.0),
 }
+#: the solvers whose runs go over MPI ranks (their models are per rank)
+MPI_SOLVERS = ("petsc", "petsc-amg")
 # the PETSc solvers, per rank (every rank holds the whole model today): petsc-amg as
 # amg with PETSc's copy of the hierarchy (5.2 GB measured at 286k 3-D DOFs on 1 rank,
 # 4.4 GB on 2, amg 4.35 GB); MUMPS's factors as PARDISO's (2.35 GB at 89k 3-D DOFs on
@@ -147,16 +150,21 @@ def check_size(n_dof: int, *, force: bool = False, what: str = "this run", dim: 
     name = _solver_name(solver)
     grow = extra if callable(extra) else (lambda n: float(extra) * n / max(int(n_dof), 1))
     need = estimated_peak_memory(n_dof, name, dim, grow(n_dof))
-    have = available_memory()
+    have, ranks = available_memory(), 1
+    if name in MPI_SOLVERS:  # under mpiexec: a rank's share, the same on every rank
+        have, ranks = per_rank_memory(have)
+    where = "available" if ranks == 1 else f"available to each rank ({ranks} ranks share a machine)"
     if not lower_bound:
-        log.info("%s: %d unknowns, estimated peak memory %.2g GB with %s (%s available)", what,
-                 n_dof, need / GB, name, "unknown" if have is None else f"{have / GB:.3g} GB")
+        log.info("%s: %d unknowns, estimated peak memory %.2g GB%s with %s (%s %s)", what, n_dof,
+                 need / GB, "" if ranks == 1 else " a rank", name,
+                 "unknown" if have is None else f"{have / GB:.3g} GB", where)
     if have is not None and need > HEADROOM * have:
         most = largest_fitting(HEADROOM * have, name, dim, grow)
         least = "at least " if lower_bound else ""
         msg = (f"{what} has {least}{n_dof:,} unknowns and needs an estimated {need / GB:.3g} GB of "
-               f"memory with the {name} solver, more than {100 * HEADROOM:.0f} % of the "
-               f"{have / GB:.3g} GB available (the largest that fits is about {most:,} unknowns)")
+               f"memory{'' if ranks == 1 else ' on each rank'} with the {name} solver, more than "
+               f"{100 * HEADROOM:.0f} % of the {have / GB:.3g} GB {where} (the largest that fits "
+               f"is about {most:,} unknowns)")
         if not force:
             raise ResourceError(msg + f"; use {hint}, or insist with --force-size "
                                 "(API: force_size=True)")

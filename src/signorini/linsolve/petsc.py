@@ -73,6 +73,30 @@ def world() -> tuple[int, int]:
     return comm.Get_rank(), comm.Get_size()
 
 
+def per_rank_memory(have: float | None) -> tuple[float | None, int]:
+    """(the bytes each rank may count on, the most ranks on one machine) of a run
+    under mpiexec, given the bytes ``have`` available on this rank's machine (None:
+    unknown). The ranks of one machine share its memory, each holding a model, so a
+    rank counts on its machine's share, and every rank on the least share of any
+    (one collective): every rank then takes the same decision, for a rank that
+    refused a run alone would leave the others waiting for it in their first
+    collective. ``(have, 1)`` where MPI runs one rank or is not installed."""
+    _, size = world()
+    if size < 2:
+        return have, 1
+    from mpi4py import MPI  # noqa: PLC0415  (lazy: an optional install; world() found it)
+
+    comm = MPI.COMM_WORLD
+    machine = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    try:
+        here = machine.Get_size()
+    finally:
+        machine.Free()
+    least = comm.allreduce(float("inf") if have is None else have / here, op=MPI.MIN)
+    most = comm.allreduce(here, op=MPI.MAX)
+    return (None if least == float("inf") else least), most
+
+
 def insert_options(options: str) -> None:
     """Put PETSc options (a string as on PETSc's command line) into PETSc's global
     database, which every :class:`PetscSolver` reads (``--petsc-options``)."""
