@@ -52,3 +52,13 @@ def test_the_largest_size_that_fits_is_the_boundary_of_the_estimate():
         assert m.estimated_peak_memory(n, solver, dim) <= have < m.estimated_peak_memory(
             n + 1, solver, dim)
     assert m.largest_fitting(0.1 * m.GB, "pardiso", 2) == 0  # not even the process fits
+
+
+def test_a_3d_refusal_suggests_the_iterative_solver_of_the_run():
+    """The iterative solver is suggested unless the run uses it: petsc-amg for a run on
+    the petsc solver (under mpiexec), amg for the others."""
+    from signorini.linsolve import iterative_hint
+
+    assert "--solver amg)" in iterative_hint("pardiso") and "--solver amg)" in iterative_hint("superlu")
+    assert "--solver petsc-amg)" in iterative_hint("petsc")
+    assert iterative_hint("amg") == iterative_hint("petsc-amg") == ""

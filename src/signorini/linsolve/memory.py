@@ -60,6 +60,16 @@ def _solver_name(solver) -> str:
     return str(getattr(solver, "name", solver))
 
 
+def iterative_hint(solver) -> str:
+    """What a 3-D refusal adds to its hint: the iterative solver (``petsc-amg`` for a
+    run on the ``petsc`` solver, ``amg`` for the others), unless the run uses it."""
+    name = _solver_name(solver)
+    if name in ("amg", "petsc-amg"):
+        return ""
+    return (f", the iterative solver (--solver {'petsc-amg' if name == 'petsc' else 'amg'}), "
+            "which needs less memory in 3-D")
+
+
 def estimated_peak_memory(n_dof: int, solver="superlu", dim: int = 2, extra: float = 0.0) -> float:
     """Estimated peak resident memory in bytes of a solve with ``n_dof`` unknowns.
 

@@ -32,7 +32,7 @@ from ..fem.kinematics import Axisymmetric
 from ..fem.loads import Fixed, Pressure
 from ..fem.mesh import graded_coordinates, rectangle
 from ..fem.mesh3d import Mesh3D, box, with_box_sets
-from ..linsolve import check_size
+from ..linsolve import check_size, iterative_hint
 from ..materials import LinearElastic
 from ..model.problem import Problem
 from .hertz import check_fine_zone, check_mesh_options
@@ -128,8 +128,7 @@ def hertz3d_problem(params: dict | None = None, *, refine: int = 0, n_fine: int 
     dim = 2 if axisymmetric else 3
     what = "the axisymmetric Hertz mesh" if axisymmetric else "the 3-D Hertz mesh"
     hint = "a coarser mesh (smaller --refine or --n-fine)" + (
-        "" if axisymmetric or getattr(solver, "name", solver) == "amg" else
-        ", the iterative solver (--solver amg), which needs less memory in 3-D")
+        "" if axisymmetric else iterative_hint(solver))
     check_fine_zone(refine, n_fine, dim=dim, what=what, force=force_size, solver=solver, hint=hint)
     xs, zs, _ = grid(refine=refine, n_fine=n_fine, size=size, zone=zone)
     friction = values["mu"] > 0

@@ -43,7 +43,7 @@ from ..errors import InputError
 from ..fem.loads import Fixed, Pressure, Ramp, Traction
 from ..fem.mesh import graded_coordinates, merge
 from ..fem.mesh3d import Mesh3D, box
-from ..linsolve import check_size
+from ..linsolve import check_size, iterative_hint
 from ..materials import Bodies, LinearElastic
 from ..model.problem import Problem
 from .cylinders import partial_slip
@@ -199,9 +199,7 @@ def spheres_problem(params: dict | None = None, *, refine: int = 0, n_fine: int 
     check_partial_slip("spheres problem", values)
     friction = values["mu"] > 0
     what = "the two-sphere mesh"
-    hint = "a coarser mesh (smaller --refine or --n-fine)" + (
-        "" if getattr(solver, "name", solver) == "amg" else
-        ", the iterative solver (--solver amg), which needs less memory in 3-D")
+    hint = "a coarser mesh (smaller --refine or --n-fine)" + iterative_hint(solver)
     check_fine_zone(refine, n_fine, dim=3, what=what, force=force_size, solver=solver, hint=hint)
     x1, y1, x2, y2, e1, e2, a0, W = grid(nominal, refine=refine, n_fine=n_fine, ratio=ratio, half=friction)
     n_nodes = len(x1) * len(y1) * len(e1) + len(x2) * len(y2) * len(e2)
