@@ -45,3 +45,12 @@ def test_options_are_checked():
 def test_rows_split_evenly():
     assert split_rows(10, 3).tolist() == [0, 3, 6, 10]
     assert split_rows(2, 3).tolist() == [0, 0, 1, 2]  # a rank may own no row
+
+
+def test_the_command_line_knows_the_solvers_that_run_over_ranks():
+    """The command line's list (written out: it loads no solver) names the PETSc
+    solvers, which the size guard counts per rank."""
+    from signorini.app import cli
+    from signorini.linsolve import petsc
+
+    assert cli.MPI_SOLVERS == petsc.MPI_SOLVERS == ("petsc", "petsc-amg")

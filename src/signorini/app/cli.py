@@ -114,7 +114,9 @@ def entry() -> None:
     os._exit(code if isinstance(code, int) else 1)
 
 
-#: the solvers run under mpiexec (:mod:`signorini.app.ranks`)
+#: the solvers run under mpiexec (:mod:`signorini.app.ranks`): the names of
+#: :data:`signorini.linsolve.petsc.MPI_SOLVERS`, written out so that the command line
+#: loads no solver before it knows the command
 MPI_SOLVERS = ("petsc", "petsc-amg")
 
 

@@ -13,7 +13,7 @@ import logging
 import os
 
 from ..errors import ResourceError
-from .petsc import per_rank_memory
+from .petsc import MPI_SOLVERS, per_rank_memory
 from .select import get_solver
 
 log = logging.getLogger("signorini")
@@ -43,8 +43,6 @@ _MODELS = {
     ("amg", 2): (0.5, 1.2e-5, 1.0),
     ("amg", 3): (0.5, 1.2e-5, 1.0),
 }
-#: the solvers whose runs go over MPI ranks (their models are per rank)
-MPI_SOLVERS = ("petsc", "petsc-amg")
 # the PETSc solvers, per rank (every rank holds the whole model today): petsc-amg as
 # amg with PETSc's copy of the hierarchy (5.2 GB measured at 286k 3-D DOFs on 1 rank,
 # 4.4 GB on 2, amg 4.35 GB); MUMPS's factors as PARDISO's (2.35 GB at 89k 3-D DOFs on

@@ -521,3 +521,7 @@ def _gatherer(comm, MPI, starts: np.ndarray):
                        [out, counts, displs, MPI.DOUBLE])
         return out
     return gather
+
+
+#: the solvers whose runs go over the MPI ranks (under mpiexec)
+MPI_SOLVERS = (PetscSolver.name, PetscAMG.name)
