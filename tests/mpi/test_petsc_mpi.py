@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from signorini.linsolve.petsc import split_rows
+
 HERE = Path(__file__).parent
 CASE = HERE / "case.py"
 #: the ``signorini`` command as the console command runs it
@@ -103,10 +105,10 @@ def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
         for key, count in (("seen", "cells"), ("seen_nodes", "nodes")):
             n = int(ref[count])
             assert list(ref[key]) == [n]
-            assert list(got[key]) == list(np.diff(np.arange(ranks + 1) * n // ranks)), key
+            assert list(got[key]) == list(np.diff(split_rows(n, ranks))), key
         # the contact zone is split across the ranks: the closed nodes lie in the
         # blocks of several ranks' contact kernels
-        blocks = np.arange(ranks + 1) * int(ref["nodes"]) // ranks
+        blocks = split_rows(int(ref["nodes"]), ranks)
         closed = [int(np.sum(ref["closed"][a:b])) for a, b in itertools.pairwise(blocks)]
         assert list(got["closed"]) == list(ref["closed"])
         assert sum(c > 0 for c in closed) >= 2, closed
@@ -114,7 +116,7 @@ def test_parallel_solve_equals_serial(serial, tmp_path, name, solver, ranks):
         # the rows of the tangent MUMPS factorises (contiguous blocks, one a rank) that
         # hold a contact node's unknowns: on the 3-D Hertz problem all in the last
         # rank's block (the others own no contact node), on the forging in every one
-        blocks = np.arange(ranks + 1) * int(ref["n_rows"]) // ranks
+        blocks = split_rows(int(ref["n_rows"]), ranks)
         owned = np.histogram(ref["contact_rows"], blocks)[0]
         if name == "friction":
             assert list(owned[:-1]) == [0] * (ranks - 1) and owned[-1] > 0, owned
