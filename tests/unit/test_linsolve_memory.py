@@ -57,7 +57,7 @@ def test_the_largest_size_that_fits_is_the_boundary_of_the_estimate():
 def test_a_3d_refusal_suggests_the_iterative_solver_of_the_run():
     """The iterative solver is suggested unless the run uses it: petsc-amg for a run on
     the petsc solver (under mpiexec), amg for the others."""
-    from signorini.linsolve import iterative_hint
+    from signorini.linsolve.memory import iterative_hint
 
     assert "--solver amg)" in iterative_hint("pardiso") and "--solver amg)" in iterative_hint("superlu")
     assert "--solver petsc-amg)" in iterative_hint("petsc")

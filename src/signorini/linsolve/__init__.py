@@ -32,7 +32,7 @@ Backends (``solver=`` of :func:`signorini.solve`, ``--solver`` of the CLI):
 
 from .base import LinearSolver
 from .factor import REFINE_STEPS, REFINE_TOL, Factor, diagonal
-from .memory import GB, available_memory, check_size, estimated_peak_memory, iterative_hint
+from .memory import GB, available_memory, check_size, estimated_peak_memory
 from .mkl import mkl_max_threads, mkl_threads, openblas_single_thread
 from .pardiso import Pardiso
 from .iterative import AMGKrylov
@@ -48,6 +48,6 @@ __all__ = [
     "AMGKrylov", "AUTO_ORDER", "GB", "REFINE_STEPS", "REFINE_TOL", "SOLVERS", "SYMMETRY_TOL", "Factor",
     "LinearSolver", "Pardiso", "PetscAMG", "PetscSolver", "SuperLU", "TangentSolver", "Umfpack", "available",
     "available_memory", "blocks_symmetric", "check_size", "diagonal", "estimated_peak_memory",
-    "for_model", "get_solver", "is_symmetric", "iterative_hint", "mkl_max_threads", "mkl_threads", "openblas_single_thread",
+    "for_model", "get_solver", "is_symmetric", "mkl_max_threads", "mkl_threads", "openblas_single_thread",
     "product_threads",
 ]

@@ -32,7 +32,8 @@ from ..fem.kinematics import Axisymmetric
 from ..fem.loads import Fixed, Pressure
 from ..fem.mesh import graded_coordinates, rectangle
 from ..fem.mesh3d import Mesh3D, box, with_box_sets
-from ..linsolve import check_size, iterative_hint
+from ..linsolve import check_size
+from ..linsolve.memory import iterative_hint
 from ..materials import LinearElastic
 from ..model.problem import Problem
 from .hertz import check_fine_zone, check_mesh_options

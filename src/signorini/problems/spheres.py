@@ -43,7 +43,8 @@ from ..errors import InputError
 from ..fem.loads import Fixed, Pressure, Ramp, Traction
 from ..fem.mesh import graded_coordinates, merge
 from ..fem.mesh3d import Mesh3D, box
-from ..linsolve import check_size, iterative_hint
+from ..linsolve import check_size
+from ..linsolve.memory import iterative_hint
 from ..materials import Bodies, LinearElastic
 from ..model.problem import Problem
 from .cylinders import partial_slip
