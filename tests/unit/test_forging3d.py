@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 
 import signorini as sg
+from signorini._jax import jax
 from signorini.app.cli import main
+from signorini.errors import ResourceError
+from signorini.linsolve import memory as resources
 from signorini.problems import forging3d as f3
 
 
@@ -65,3 +68,33 @@ def test_forging3d_preform_shapes():
     assert np.allclose(nominal.mesh.nodes[on_x, 0], 0.7, atol=1e-14)  # half-width 0.45 + 0.25
     with pytest.raises(sg.InputError, match="round \\+ bulge > 0"):
         f3.forging3d_problem({"round": 0.0})
+
+
+def test_size_guard_counts_the_plastic_kernels_and_the_history_of_every_increment(monkeypatch):
+    """The forging's peak memory is not the linear solver's alone: ``--mesh 20x20
+    --steps 2 --no-fd`` (PARDISO, 8,000 cells, 10 increments after its step cuts)
+    peaked at 2,740,872 kB (2.61 GiB) against 0.76 GiB for the solver's model. The
+    estimate covers it, and the history kept for every increment and sensitivity
+    (738 bytes a cell, measured on the 3x3 mesh) makes --steps count: at 40x40 with
+    12 GB available the default 20 steps are refused (the solver's model alone,
+    4.9 GiB, would have passed), 2 steps pass."""
+    monkeypatch.setattr(resources, "available_memory", lambda: 64.0 * resources.GB)
+    measured = 2_740_872 * 1024 / resources.GB
+    estimate = f3.check_mesh_size((20, 20), steps=2, sensitivities=5, solver="pardiso") / resources.GB
+    assert measured <= estimate <= 1.3 * measured
+    alone = resources.estimated_peak_memory(3 * 41**2 * 41, "pardiso", dim=3) / resources.GB
+    assert 4.5 < alone < 5.5
+    monkeypatch.setattr(resources, "available_memory", lambda: 12.0 * resources.GB)
+    with pytest.raises(ResourceError, match=r"3-D forging mesh.*--mesh\) or fewer --steps"):
+        f3.check_mesh_size((40, 40), sensitivities=6, solver="pardiso")
+    with pytest.raises(ResourceError, match="3-D forging mesh"):
+        f3.forging3d_problem(mesh=(40, 40), solver="pardiso")
+    f3.check_mesh_size((40, 40), steps=2, sensitivities=6, solver="pardiso")
+    # one state and one sensitivity per increment, as the estimate counts them
+    def nbytes(tree):
+        return sum(np.asarray(a).nbytes for a in jax.tree_util.tree_leaves(tree))
+    pb = f3.forging3d_problem(mesh=(3, 3))
+    sol = sg.solve(pb, steps=1, wrt=["mu", "sigma_y"])
+    inc = sol.increments[-1]
+    assert nbytes(inc.state) <= f3.HISTORY_BYTES_PER_CELL * pb.mesh.n_cells
+    assert nbytes(inc.state_sens) <= 2 * f3.HISTORY_BYTES_PER_CELL * pb.mesh.n_cells

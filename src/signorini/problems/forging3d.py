@@ -49,6 +49,43 @@ DEFAULTS = {"square": 0.45, "round": 0.25, "bulge": 0.0, "mu": 0.2, "sigma_y": 1
             "E": 1.0e4, "nu": 0.3, "stroke": 0.4 * H0}
 #: the parameters whose sensitivities the command reports
 REPORTED = SHAPE + ("mu", "sigma_y")
+#: increments the size estimate counts when the run's are not given (the command's default)
+STEPS = 20
+
+#: the size guard's memory beyond the linear solver's model (docs/cli.md), fitted to peak
+#: resident memory measured on this problem: the J2 F-bar kernels' working memory, about
+#: 260 kB per cell up to the 4,096 cells of one chunk (1.07 GB measured at 4,096 and 0.87-1.0 GB
+#: at 8,000 to 21,952 cells for one element-tangent evaluation) and 0.85 GB of programs (the
+#: DDM's JVPs, the update); the whole command at 8,000 cells peaked at 2.74 GB against the
+#: 0.76 GB the solver's model alone gives
+KERNEL_BYTES_PER_CELL = 2.6e5
+KERNEL_CELLS = 4096
+PROGRAM_BYTES = 0.85 * 1024.0**3
+#: a cell's share of the state kept for every increment, and of its sensitivity once per
+#: parameter (measured 738 bytes a cell: its 8 Gauss points' C_p^-1 and alpha, 640 bytes,
+#: with its share of the displacements and the contact history)
+HISTORY_BYTES_PER_CELL = 740
+
+
+def check_mesh_size(mesh: tuple[int, int], *, steps: int = STEPS, sensitivities: int = len(REPORTED),
+                    force: bool = False, solver="auto") -> float:
+    """The size guard of the forging3d mesh (cells across the section's half, cells
+    in z), before it is built (:func:`signorini.linsolve.check_size`): the
+    solver's model plus the J2 kernels' working memory and the history kept for
+    ``steps`` increments with ``sensitivities`` parameters' sensitivities (the
+    command's: its ``--steps``, its five parameters and, with the finite-difference
+    check, one run more). Returns the estimate in bytes."""
+    ns, nz = mesh
+    cells, n_dof = ns * ns * nz, 3 * (ns + 1) ** 2 * (nz + 1)
+    copies = max(int(steps), 1) * (1 + max(int(sensitivities), 0))
+
+    def extra(n):
+        c = cells * n / n_dof  # as the mesh is refined
+        return (PROGRAM_BYTES + KERNEL_BYTES_PER_CELL * min(c, KERNEL_CELLS)
+                + HISTORY_BYTES_PER_CELL * c * copies)
+
+    return check_size(n_dof, force=force, what="the 3-D forging mesh", dim=3, solver=solver,
+                      extra=extra, hint="a coarser mesh (smaller --mesh) or fewer --steps")
 
 
 def section(xi, eta):
@@ -67,11 +104,13 @@ def section(xi, eta):
 
 def forging3d_problem(params: dict | None = None, *, mesh: tuple[int, int] = (6, 6),
                       lateral_fraction: float = 0.5, force_size: bool = False,
-                      solver="auto") -> Problem:
+                      solver="auto", steps: int = STEPS,
+                      sensitivities: int = len(REPORTED)) -> Problem:
     """The billet's eighth (parameters square, round, bulge, mu, sigma_y, H, E, nu,
     stroke, eps, eps_t); ``mesh`` = (cells across the section's half, cells in z);
     ``force_size``: build it even if it is estimated not to fit in memory with
-    ``solver`` (the run's linear solver)."""
+    ``solver`` (the run's linear solver), ``steps`` increments and
+    ``sensitivities`` parameters (:func:`check_mesh_size`)."""
     values = checked_values("3-D forging problem", DEFAULTS, params, extra=("eps", "eps_t"),
                             tag="forging3d")
     ns, nz = mesh
@@ -85,8 +124,8 @@ def forging3d_problem(params: dict | None = None, *, mesh: tuple[int, int] = (6,
     if values["round"] + min(values["bulge"], 0.0) <= 0 or values["square"] < 0:
         raise InputError(f"the preform needs round + bulge > 0 and square >= 0, got round = "
                          f"{values['round']}, bulge = {values['bulge']}, square = {values['square']}")
-    check_size(3 * (ns + 1) ** 2 * (nz + 1), force=force_size, what="the 3-D forging mesh", dim=3,
-               solver=solver, hint="a coarser mesh (smaller --mesh)")
+    check_mesh_size((ns, nz), steps=steps, sensitivities=sensitivities, force=force_size,
+                    solver=solver)
 
     unit = box(np.linspace(0, 1, ns + 1), np.linspace(0, 1, ns + 1), np.linspace(0, H0, nz + 1))
     xi, eta, z = unit.nodes.T

@@ -88,7 +88,9 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (6, 6), step
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"--steps must be a whole number >= 1, got {steps!r}")
     out = prepare_output(out)
-    pb = forging3d_problem(params, mesh=mesh, force_size=force_size, solver=solver)
+    # the history kept: the run's and its sensitivities, and one more run for the FD check
+    pb = forging3d_problem(params, mesh=mesh, force_size=force_size, solver=solver, steps=steps,
+                           sensitivities=len(REPORTED) + int(bool(fd_check)))
     v = pb.params
     opts = options(rtol) if max_iter is None else options(rtol, max_iter)
     solver = use_solver(solver)
