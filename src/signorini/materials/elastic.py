@@ -20,7 +20,8 @@ from ..params import Spec, resolve
 def det_minus_one(H):
     """det(I + H) - 1 = I1(H) + I2(H) + I3(H), without cancellation for small H."""
     tr = jnp.trace(H)
-    return tr + 0.5 * (tr**2 - jnp.trace(H @ H)) + _small.det(H)
+    # tr(H H) as the sum of H_ij H_ji: no matrix product
+    return tr + 0.5 * (tr**2 - jnp.sum(H * H.T)) + _small.det(H)
 
 
 @dataclass(frozen=True)

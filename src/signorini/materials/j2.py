@@ -21,6 +21,7 @@ from .._jax import jax, jnp
 from ..interfaces import MaterialDefaults
 from ..errors import InputError
 from ..params import Spec, resolve
+from .elastic import det_minus_one
 
 _SQ23 = math.sqrt(2.0 / 3.0)
 _I = np.eye(3)  # NumPy: a JAX op at import is compiled, one program each (theory §10.5)
@@ -29,12 +30,6 @@ _I = np.eye(3)  # NumPy: a JAX op at import is compiled, one program each (theor
 #: bound within ~||s/mu||^2 of the root, quadratic; 8 steps reach round-off for
 #: any sigma_y + H alpha up to the shear modulus mu
 _NEWTON_STEPS = 8
-
-
-def _det_minus_one(H):
-    """det(I + H) - 1 = I1(H) + I2(H) + I3(H), without cancellation for small H."""
-    tr = jnp.trace(H)
-    return tr + 0.5 * (tr**2 - jnp.sum(H * H.T)) + _small.det(H)
 
 
 def _dev(A):
@@ -155,7 +150,7 @@ class J2Plasticity(MaterialDefaults):
         """
         mu, kappa = self.moduli(mp)
         Cpinv = self.plastic_metric_inverse(h_n)
-        d = _det_minus_one(H)
+        d = det_minus_one(H)
         J = 1.0 + d
         F = _I + H
         U = 0.5 * kappa * (0.5 * d * (2.0 + d) - jnp.log1p(d))
@@ -169,7 +164,7 @@ class J2Plasticity(MaterialDefaults):
         alpha_n = h_n[9]
 
         F = _I + H
-        d = _det_minus_one(H)                      # J - 1 without cancellation
+        d = det_minus_one(H)                      # J - 1 without cancellation
         J = 1.0 + d
         c = jnp.expm1(-2.0 / 3.0 * jnp.log1p(d))  # J^{-2/3} - 1
         # F C_p^{-1} F^T - I, summed so that small H and C_p^{-1} ~ I lose no digits
