@@ -70,19 +70,48 @@ def parse_mesh(text: str) -> tuple[int, int]:
     return nr, nz
 
 
+#: increments the size estimate counts when the run's are not given (the command's default)
+STEPS = 50
+#: the size guard's memory beyond the linear solver's model (docs/cli.md), fitted to peak
+#: resident memory measured on this problem (``--no-fd``, PARDISO): 1.31 GiB at 3,200 cells
+#: with 51 increments, 2.07 GiB at 8,192 cells with 37, against 0.44 and 0.51 GiB for the
+#: solver's model alone. The J2 F-bar quadrilaterals' programs, PROGRAM_BYTES, and their
+#: working memory, about 40 kB a cell up to two chunks of 4,096 cells side by side (0.31 GB
+#: measured for one element-tangent evaluation at 8,192 cells, 0.22 GB at 20,000); a cell's
+#: share of the state kept for every increment and of its sensitivity once per parameter
+#: (349 bytes measured: 4 Gauss points' C_p^-1 and alpha, with its share of the
+#: displacements and the contact history)
+PROGRAM_BYTES = 0.4 * 1024.0**3
+KERNEL_BYTES_PER_CELL = 4.0e4
+KERNEL_CELLS = 8192
+HISTORY_BYTES_PER_CELL = 350
+
+
 def check_mesh_size(mesh: tuple[int, int], lateral_fraction: float = 0.5, *, force: bool = False,
-                    solver="auto") -> None:
+                    solver="auto", steps: int = STEPS, sensitivities: int = len(TABLE1)) -> float:
     """The size guard of the forging mesh (n_r, n_z), before it is built
-    (:func:`signorini.linsolve.check_size`)."""
+    (:func:`signorini.linsolve.check_size`): the solver's model plus the J2
+    kernels' memory and the history kept for ``steps`` increments with
+    ``sensitivities`` parameters' sensitivities (the command's: its ``--steps``,
+    Table 1's seven parameters and, with the finite-difference check, one run
+    more). Returns the estimate in bytes."""
     nr, nz = mesh
     n_contact = (nr + 1) + int(np.ceil(lateral_fraction * nz))
-    check_size(2 * (nr + 1) * (nz + 1) + 2 * n_contact, force=force, what="the forging mesh",
-               solver=solver, hint="a coarser mesh (smaller --mesh)")
+    cells, n_dof = nr * nz, 2 * (nr + 1) * (nz + 1) + 2 * n_contact
+    copies = max(int(steps), 1) * (1 + max(int(sensitivities), 0))
+
+    def extra(n):
+        c = cells * n / n_dof  # as the mesh is refined
+        return (PROGRAM_BYTES + KERNEL_BYTES_PER_CELL * min(c, KERNEL_CELLS)
+                + HISTORY_BYTES_PER_CELL * c * copies)
+
+    return check_size(n_dof, force=force, what="the forging mesh", solver=solver, extra=extra,
+                      hint="a coarser mesh (smaller --mesh) or fewer --steps")
 
 
 def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 20),
                     lateral_fraction: float = 0.5, formulation=FBAR, force_size: bool = False,
-                    solver="auto") -> Problem:
+                    solver="auto", steps: int = STEPS, sensitivities: int = len(TABLE1)) -> Problem:
     """The forging half model (parameters phi0..phi4, mu, sigma_y, H, E, nu, stroke, eps, eps_t).
 
     The mesh is built at the *nominal* shape (:data:`DEFAULTS`, the cylinder);
@@ -107,7 +136,8 @@ def forging_problem(params: dict | None = None, *, mesh: tuple[int, int] = (10, 
     if not 0 < lateral_fraction <= 1:
         raise InputError(f"lateral_fraction must lie in (0, 1], got {lateral_fraction}")
     check_shape([values[k] for k in SHAPE])
-    check_mesh_size(mesh, lateral_fraction, force=force_size, solver=solver)
+    check_mesh_size(mesh, lateral_fraction, force=force_size, solver=solver, steps=steps,
+                    sensitivities=sensitivities)
 
     unit = rectangle(np.linspace(0.0, 1.0, nr + 1), np.linspace(0.0, H0, nz + 1))
     s, Z = unit.nodes[:, 0], unit.nodes[:, 1]

@@ -97,7 +97,9 @@ def run(out, params: dict | None = None, *, mesh: tuple[int, int] = (10, 20), st
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InputError(f"--steps must be a whole number >= 1, got {steps!r}")
     out = prepare_output(out)
-    pb = forging_problem(params, mesh=mesh, force_size=force_size, solver=solver)
+    # the history kept: the run's and its sensitivities, and one more run for the FD check
+    pb = forging_problem(params, mesh=mesh, force_size=force_size, solver=solver, steps=steps,
+                         sensitivities=len(TABLE1) + int(bool(fd_check)))
     v = pb.params
     opts = options(rtol, max_iter)
     solver = use_solver(solver)  # one instance: its symbolic analysis serves the FD re-solves too

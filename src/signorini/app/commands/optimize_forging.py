@@ -290,7 +290,8 @@ def run(out, mus=(0.1, 0.2, 0.3), *, mesh: tuple[int, int] = (10, 20), steps: in
     out = prepare_output(out)
     note_run(out, "every evaluation is recorded in mu_<value>/history.csv: the same command with "
                   "--resume continues from the best point of each")
-    forging.check_mesh_size(tuple(mesh), force=force_size, solver=solver)
+    forging.check_mesh_size(tuple(mesh), force=force_size, solver=solver, steps=steps,
+                            sensitivities=len(forging.SHAPE))
     base_problem(tuple(mesh))  # bad mesh input fails here, before any optimisation
     kwargs = dict(mesh=tuple(mesh), steps=steps, method=method, gtol=gtol, maxiter=maxiter,
                   gradient=gradient, resume=resume, solver=solver, rtol=rtol, phi_min=phi_min)
