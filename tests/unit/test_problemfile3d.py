@@ -480,3 +480,38 @@ def test_tetrahedra_and_j2_bodies_are_read(tmp_path):
     assert problem.mesh.n_cells == 6 * 4 and problem.mesh.cells.shape[1] == 4
     assert problem.material == sg.J2Plasticity("E", "nu", 2.0, 1.0)
     assert set(problem.mesh.face_sets) == {"x0", "x1", "y0", "y1", "z0", "z1"}
+
+
+def test_the_size_guard_of_a_3d_file_counts_3d_fill_and_the_history(tmp_path, monkeypatch):
+    """A 3-D file is estimated with the 3-D model (a sparse LU of a 3-D mesh fills in
+    much faster: 60^3 cells, 680k unknowns, 20 GB against 4.6 GB with the 2-D model,
+    refused with 16 GB available while the mesh is read), and a J2 body's history,
+    kept for every increment and sensitivity, counts: 20^3 J2 cells over 200 steps
+    with 3 sensitivities keep 4.1 GB, refused with 4 GB available, 2 steps pass."""
+    import dataclasses
+
+    from signorini.app.problemfile.run import check_file_size
+    from signorini.errors import ResourceError
+    from signorini.linsolve import memory as m
+
+    big = _sub("nx = 2\nny = 2\nnz = 1", "nx = 60\nny = 60\nnz = 60")(BOX)
+    assert m.estimated_peak_memory(3 * 61**3, "pardiso", dim=2) < 0.85 * 16 * m.GB
+    monkeypatch.setattr(m, "available_memory", lambda: 16.0 * m.GB)
+    with pytest.raises(ResourceError, match="680,943 unknowns"):
+        pf.load(_write(tmp_path, big), solver="pardiso")
+    j2 = _sub("nx = 2\nny = 2\nnz = 1", "nx = 20\nny = 20\nnz = 20")(
+        _sub('[material]\ntype = "linear_elastic"\nE = "E"\nnu = "nu"',
+             '[material]\ntype = "j2"\nE = "E"\nnu = "nu"\nsigma_y = 2.0\nH = 1.0')(BOX))
+    many = _sub("steps = 1", 'steps = 200\nsensitivities = ["E", "nu", "R"]')(j2)
+    monkeypatch.setattr(m, "available_memory", lambda: 4.0 * m.GB)
+    with pytest.raises(ResourceError, match="or fewer steps"):
+        pf.run(_write(tmp_path, many, "many.toml"), tmp_path / "many", solver="pardiso")
+    assert not (tmp_path / "many" / "summary.json").exists()
+    few = _sub("steps = 1", 'steps = 2\nsensitivities = ["E", "nu", "R"]')(j2)
+    problem, cfg = pf.load(_write(tmp_path, few, "few.toml"), solver="pardiso")
+    est = check_file_size(problem, cfg, solver="pardiso")
+    # 8 Gauss points x 10 values x 8 bytes a cell, for the state and 3 sensitivities
+    per_step = 8 * 10 * 8 * 8000 * (1 + 3)
+    one = check_file_size(problem, dataclasses.replace(cfg, steps=1), solver="pardiso")
+    assert est - one == pytest.approx(per_step, rel=1e-12)
+    assert m.estimated_peak_memory(3 * 21**3, "pardiso", dim=3) < one < est < 0.85 * 4 * m.GB

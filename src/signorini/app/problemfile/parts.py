@@ -81,7 +81,7 @@ def _grid(rd: Reader, where: str, data):
             raise t.err(a, f"must be increasing [{a}0, {a}1] with {a}0 < {a}1, got [{lo}, {hi}]")
     tets = t.boolean("tetrahedra", False) if dim == 3 else False
     n_nodes = int(np.prod([n + 1 for n in ns]))
-    check_size(dim * n_nodes, force=rd.force_size, solver=rd.solver, lower_bound=True,
+    check_size(dim * n_nodes, force=rd.force_size, solver=rd.solver, lower_bound=True, dim=dim,
                what=f"{rd.label}: {where} {' x '.join(map(str, ns))}",
                hint=f"a coarser mesh (smaller {', '.join('n' + a for a in axes)})")
 

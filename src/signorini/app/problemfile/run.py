@@ -144,6 +144,22 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
 
 
 @timing.recorded
+def check_file_size(problem, cfg, *, force: bool = False, solver="auto") -> float:
+    """The size guard of a loaded file's run (:func:`signorini.linsolve.check_size`):
+    its unknowns in its dimension, and the history a material with history keeps
+    (2^dim Gauss points a cell at most) for every increment and, as its sensitivity,
+    once per parameter. Returns the estimate in bytes."""
+    dim = int(problem.mesh.nodes.shape[1])
+    sets = problem.mesh.face_sets if dim == 3 else problem.mesh.edge_sets
+    n_contact = sum(len(np.unique(sets[c.edges])) * c.method.n_multipliers for c in problem.contact)
+    n_state = int(getattr(problem.material, "n_state", 0))
+    history = (8.0 * 2**dim * n_state * problem.mesh.n_cells * cfg.steps
+               * (1 + len(cfg.sensitivities)))
+    return check_size(dim * problem.mesh.n_nodes + n_contact, force=force, what=str(cfg.path),
+                      solver=solver, dim=dim, extra=history,
+                      hint="a coarser mesh" + (" or fewer steps" if n_state else ""))
+
+
 def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
         rtol: float | None = None, max_iter: int | None = None) -> dict:
     """Load a problem file, solve it with DDM sensitivities and write the results.
@@ -174,11 +190,7 @@ def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
     if given:
         cfg = dataclasses.replace(cfg, options=dataclasses.replace(cfg.options, **given))
     out = prepare_output(out)
-    dim = int(problem.mesh.nodes.shape[1])
-    sets = problem.mesh.face_sets if dim == 3 else problem.mesh.edge_sets
-    n_contact = sum(len(np.unique(sets[c.edges])) * c.method.n_multipliers for c in problem.contact)
-    check_size(dim * problem.mesh.n_nodes + n_contact, force=force_size, what=str(cfg.path),
-               solver=solver, hint="a coarser mesh")
+    check_file_size(problem, cfg, force=force_size, solver=solver)
     summary = {
         "file": str(cfg.path), "title": cfg.title, "status": "running",
         "params": dict(problem.params),
