@@ -215,3 +215,31 @@ def test_a_curve_against_a_displacement_response_from_a_file(tmp_path):
     f.write_text(text + fit.replace("steps = 4\n", ""))
     with pytest.raises(sg.InputError, match=r"\[fit\] steps: every curve is measured against an abscissa"):
         pf.fit(f, tmp_path / "out2")
+
+
+def test_a_fit_too_large_for_the_machine_is_refused_before_its_first_solve(tmp_path, capsys,
+                                                                          monkeypatch):
+    """The fit's solves are checked against the available memory before the first one,
+    as a run's are (the whole mesh, 3-D, its contact multipliers), with exit 2 and
+    no history written."""
+    import importlib
+
+    from signorini.errors import ResourceError
+
+    # the module (the package's name ``run`` is its function)
+    run_module = importlib.import_module("signorini.app.problemfile.run")
+
+    seen = []
+
+    def refuse(n_dof, **kw):
+        seen.append((n_dof, kw["dim"], kw["extra"]))
+        raise ResourceError(f"refused: {n_dof:,} unknowns")
+
+    monkeypatch.setattr(run_module, "check_size", refuse)
+    f = _copy(tmp_path)
+    code = main(["fit", str(f), "--out", str(tmp_path / "out"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err and "refused: 2,028 unknowns" in err, err
+    # the block's 13 x 13 x 3 nodes and its 169 contact nodes' 3 multipliers; no history
+    assert seen == [(3 * 13 * 13 * 3 + 3 * 169, 3, 0.0)]
+    assert not (tmp_path / "out" / "fit_history.csv").exists()

@@ -86,6 +86,25 @@ def _derived_steps(times: np.ndarray) -> int:
                      "between increments)")
 
 
+def fit_steps(curves, steps: int | None = None) -> int:
+    """The equal load increments of a fit's solves: ``steps``, checked, or with None
+    derived from the measured load factors of ``curves`` (module docstring)."""
+    curves = _curves(curves)
+    timed = [c.times for c in curves if c.abscissa is None]
+    times = np.concatenate(timed) if timed else np.array([1.0])
+    if steps is None:
+        if not timed:
+            raise InputError("steps=None derives the increments from the measured load factors, "
+                             "but every curve is measured against an abscissa response: give steps")
+        steps = _derived_steps(times)
+    elif isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise InputError(f"steps must be a positive integer or None (from the times), got {steps!r}")
+    if times.min() < (1 - TIME_TOL) / steps:
+        raise InputError(f"the measured time {float(times.min())!r} comes before the first increment "
+                         f"(t = 1/{steps}): give more steps")
+    return int(steps)
+
+
 @dataclass
 class Point:
     """The residuals of the curves at a parameter point x (one solve)."""
@@ -140,18 +159,7 @@ class Misfit(ObjectiveEvaluation):
             raise InputError(f"wrt lists a parameter twice: {self.names}")
         check_names(self.names, problem.params, "the parameters to fit (wrt)")
         self.curves = _curves(curves)
-        timed = [c.times for c in self.curves if c.abscissa is None]
-        times = np.concatenate(timed) if timed else np.array([1.0])
-        if steps is None:
-            if not timed:
-                raise InputError("steps=None derives the increments from the measured load factors, "
-                                 "but every curve is measured against an abscissa response: give steps")
-            steps = _derived_steps(times)
-        elif isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-            raise InputError(f"steps must be a positive integer or None (from the times), got {steps!r}")
-        if times.min() < (1 - TIME_TOL) / steps:
-            raise InputError(f"the measured time {float(times.min())!r} comes before the first increment "
-                             f"(t = 1/{steps}): give more steps")
+        steps = fit_steps(self.curves, steps)
         self.n_data = int(sum(np.count_nonzero(c.weights > 0) for c in self.curves))
         if self.n_data < len(self.names):
             raise InputError(f"fewer data ({self.n_data} measured points of positive weight) than "
@@ -160,7 +168,9 @@ class Misfit(ObjectiveEvaluation):
             raise InputError(f"options must be a signorini.NewtonOptions, got {type(options).__name__}")
         self.problem, self.steps, self.solver, self.label = problem, int(steps), solver, label
         self.options = options if options is not None else NewtonOptions()
-        self.until = float(min(times.max(), 1.0))
+        timed = [c.times for c in self.curves if c.abscissa is None]
+        # the solves run to the last measured load factor (to the end without one)
+        self.until = float(min(np.concatenate(timed).max(), 1.0)) if timed else 1.0
         self.records: list[Evaluation] = []
         self.warnings: list[str] = []
         self.failure_value = None

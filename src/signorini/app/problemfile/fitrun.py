@@ -6,6 +6,7 @@ point), and the files: ``fit.json``, ``fit_history.csv``, ``fitted.toml``,
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import time
@@ -14,12 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ...design.fit import Curve
+from ...design.fit import Curve, fit_steps
 from ...design.fit import fit as fit_curves
 from ...errors import InputError, SignoriniWarning
 from ...post import files as io
 from ...post.plots import save, subplots
 from ..runner import note_run, prepare_output
+from .run import check_file_size
 from .schema import load
 
 __all__ = ["HISTORY", "fit"]
@@ -128,6 +130,10 @@ def fit(path, out, *, solver="auto", progress=None, resume: bool = False,
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", SignoriniWarning)
+            # the solves' size: the fit's increments and its parameters' sensitivities
+            check_file_size(problem, dataclasses.replace(
+                cfg, steps=fit_steps(curves, spec.steps), sensitivities=tuple(names)),
+                force=force_size, solver=solver)
             res = fit_curves(problem, names, curves, start=start, bounds=spec.bounds, steps=spec.steps,
                              method=spec.method, gradient=spec.gradient, tol=spec.tol,
                              max_solves=spec.max_solves,

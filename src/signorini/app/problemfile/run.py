@@ -13,6 +13,7 @@ import numpy as np
 from ... import timing
 from ..._jax import jnp
 from ...algorithms.stepping import solve
+from ...contact.friction3d import disc
 from ...design.gradient import gradient
 from ...errors import InputError, SolverError
 from ...linsolve import check_size
@@ -151,7 +152,10 @@ def check_file_size(problem, cfg, *, force: bool = False, solver="auto") -> floa
     once per parameter. Returns the estimate in bytes."""
     dim = int(problem.mesh.nodes.shape[1])
     sets = problem.mesh.face_sets if dim == 3 else problem.mesh.edge_sets
-    n_contact = sum(len(np.unique(sets[c.edges])) * c.method.n_multipliers for c in problem.contact)
+    # in 3-D a Coulomb law is the Coulomb disc, three multipliers a node (as the model makes it)
+    n_contact = sum(len(np.unique(sets[c.edges]))
+                    * (disc(c.method) if dim == 3 else c.method).n_multipliers
+                    for c in problem.contact)
     n_state = int(getattr(problem.material, "n_state", 0))
     history = (8.0 * 2**dim * n_state * problem.mesh.n_cells * cfg.steps
                * (1 + len(cfg.sensitivities)))
