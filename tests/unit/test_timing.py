@@ -2,6 +2,7 @@
 
 import json
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -10,6 +11,8 @@ import pytest
 
 from signorini import timing
 from signorini.app.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
 
 PARTS = ("imports_s", "compile_s", "solve_s", "sensitivities_s", "output_s", "other_s")
 
@@ -72,3 +75,12 @@ def test_cli_summary_has_the_split(tmp_path):
     assert "imports_s" not in s  # main() called from Python: no process start to count from
     assert _sum(s) == pytest.approx(s["total_s"], rel=1e-9, abs=1e-9)
     assert s["solve_s"] > 0 and s["output_s"] > 0 and s["sensitivities_s"] > 0  # DDM per increment
+
+
+def test_a_problem_files_summary_has_the_split(tmp_path):
+    """`signorini run` records its own run (the same split as the commands')."""
+    from signorini.app import problemfile as pf
+
+    s = pf.run(ROOT / "examples" / "block.toml", tmp_path)["timings"]
+    assert _sum(s) == pytest.approx(s["total_s"], rel=1e-9, abs=1e-9)
+    assert s["solve_s"] > 0 and s["output_s"] > 0

@@ -144,7 +144,6 @@ def _write_results(sol, problem: Problem, cfg: RunConfig, out: Path, summary: di
         files.extend(f"{cfg.stem}_{i + 1:04d}.vtu" for i in range(len(sol.increments)))
 
 
-@timing.recorded
 def check_file_size(problem, cfg, *, force: bool = False, solver="auto") -> float:
     """The size guard of a loaded file's run (:func:`signorini.linsolve.check_size`):
     its unknowns in its dimension, and the history a material with history keeps
@@ -164,6 +163,7 @@ def check_file_size(problem, cfg, *, force: bool = False, solver="auto") -> floa
                       hint="a coarser mesh" + (" or fewer steps" if n_state else ""))
 
 
+@timing.recorded
 def run(path, out, *, solver="auto", progress=None, force_size: bool = False,
         rtol: float | None = None, max_iter: int | None = None) -> dict:
     """Load a problem file, solve it with DDM sensitivities and write the results.
