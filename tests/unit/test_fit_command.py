@@ -232,7 +232,7 @@ def test_a_fit_too_large_for_the_machine_is_refused_before_its_first_solve(tmp_p
     seen = []
 
     def refuse(n_dof, **kw):
-        seen.append((n_dof, kw["dim"], kw["extra"]))
+        seen.append((n_dof, kw["dim"], kw["extra"](n_dof)))  # the history's bytes
         raise ResourceError(f"refused: {n_dof:,} unknowns")
 
     monkeypatch.setattr(run_module, "check_size", refuse)

@@ -95,6 +95,26 @@ def estimated_peak_memory(n_dof: int, solver="superlu", dim: int = 2, extra: flo
     return (a + b * float(n) ** e) * GB + float(extra)
 
 
+def history_extra(cells: int, n_dof: int, *, history_per_cell: float, steps: int,
+                  sensitivities: int, program: float = 0.0, kernel_per_cell: float = 0.0,
+                  kernel_cells: int = 0):
+    """``extra`` for :func:`check_size` of a run whose material keeps a history: the
+    bytes beyond the solver's model of a mesh of ``cells`` cells and ``n_dof``
+    unknowns, as a function of the unknowns n (the cells growing with them as the
+    mesh is refined). ``history_per_cell`` bytes a cell for each copy kept: the
+    state of each of ``steps`` increments, and its sensitivity to each of
+    ``sensitivities`` parameters; ``program``
+    bytes of compiled programs, and the kernels' working memory,
+    ``kernel_per_cell`` bytes a cell for at most ``kernel_cells`` cells (the cells
+    evaluated at once)."""
+    copies = max(int(steps), 1) * (1 + max(int(sensitivities), 0))
+
+    def extra(n):
+        c = cells * n / max(int(n_dof), 1)
+        return program + kernel_per_cell * min(c, kernel_cells) + history_per_cell * c * copies
+    return extra
+
+
 def largest_fitting(have: float, solver="superlu", dim: int = 2, extra=None) -> int:
     """The largest number of unknowns whose estimated peak memory (with
     ``extra(n)`` bytes on top, if given) stays within ``have`` bytes (0 if none

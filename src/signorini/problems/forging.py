@@ -34,6 +34,7 @@ from ..fem.mesh import Mesh, rectangle
 from ..contact.obstacles import Line
 from ..model.problem import Problem
 from ..linsolve import check_size
+from ..linsolve.memory import history_extra
 from .._jax import jax, jnp
 from ..algorithms.newton import NewtonOptions
 from ..fem import element
@@ -98,13 +99,9 @@ def check_mesh_size(mesh: tuple[int, int], lateral_fraction: float = 0.5, *, for
     nr, nz = mesh
     n_contact = (nr + 1) + int(np.ceil(lateral_fraction * nz))
     cells, n_dof = nr * nz, 2 * (nr + 1) * (nz + 1) + 2 * n_contact
-    copies = max(int(steps), 1) * (1 + max(int(sensitivities), 0))
-
-    def extra(n):
-        c = cells * n / n_dof  # as the mesh is refined
-        return (PROGRAM_BYTES + KERNEL_BYTES_PER_CELL * min(c, KERNEL_CELLS)
-                + HISTORY_BYTES_PER_CELL * c * copies)
-
+    extra = history_extra(cells, n_dof, history_per_cell=HISTORY_BYTES_PER_CELL, steps=steps,
+                          sensitivities=sensitivities, program=PROGRAM_BYTES,
+                          kernel_per_cell=KERNEL_BYTES_PER_CELL, kernel_cells=KERNEL_CELLS)
     return check_size(n_dof, force=force, what="the forging mesh", solver=solver, extra=extra,
                       hint="a coarser mesh (smaller --mesh) or fewer --steps")
 

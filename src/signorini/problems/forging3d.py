@@ -40,6 +40,7 @@ from ..fem.loads import Fixed
 from ..fem.mesh3d import Mesh3D, box
 from ..fem.solid import cell_volume
 from ..linsolve import check_size
+from ..linsolve.memory import history_extra
 from ..materials.j2 import J2Plasticity
 from ..model.problem import Problem
 
@@ -77,13 +78,9 @@ def check_mesh_size(mesh: tuple[int, int], *, steps: int = STEPS, sensitivities:
     check, one run more). Returns the estimate in bytes."""
     ns, nz = mesh
     cells, n_dof = ns * ns * nz, 3 * (ns + 1) ** 2 * (nz + 1)
-    copies = max(int(steps), 1) * (1 + max(int(sensitivities), 0))
-
-    def extra(n):
-        c = cells * n / n_dof  # as the mesh is refined
-        return (PROGRAM_BYTES + KERNEL_BYTES_PER_CELL * min(c, KERNEL_CELLS)
-                + HISTORY_BYTES_PER_CELL * c * copies)
-
+    extra = history_extra(cells, n_dof, history_per_cell=HISTORY_BYTES_PER_CELL, steps=steps,
+                          sensitivities=sensitivities, program=PROGRAM_BYTES,
+                          kernel_per_cell=KERNEL_BYTES_PER_CELL, kernel_cells=KERNEL_CELLS)
     return check_size(n_dof, force=force, what="the 3-D forging mesh", dim=3, solver=solver,
                       extra=extra, hint="a coarser mesh (smaller --mesh) or fewer --steps")
 

@@ -17,6 +17,7 @@ from ...contact.friction3d import disc
 from ...design.gradient import gradient
 from ...errors import InputError, SolverError
 from ...linsolve import check_size
+from ...linsolve.memory import history_extra
 from ...model.problem import Problem
 from ...post import files as io
 from .. import validity
@@ -156,10 +157,10 @@ def check_file_size(problem, cfg, *, force: bool = False, solver="auto") -> floa
                     * (disc(c.method) if dim == 3 else c.method).n_multipliers
                     for c in problem.contact)
     n_state = int(getattr(problem.material, "n_state", 0))
-    history = (8.0 * 2**dim * n_state * problem.mesh.n_cells * cfg.steps
-               * (1 + len(cfg.sensitivities)))
-    return check_size(dim * problem.mesh.n_nodes + n_contact, force=force, what=str(cfg.path),
-                      solver=solver, dim=dim, extra=history,
+    n_dof = dim * problem.mesh.n_nodes + n_contact
+    history = history_extra(problem.mesh.n_cells, n_dof, history_per_cell=8.0 * 2**dim * n_state,
+                            steps=cfg.steps, sensitivities=len(cfg.sensitivities))
+    return check_size(n_dof, force=force, what=str(cfg.path), solver=solver, dim=dim, extra=history,
                       hint="a coarser mesh" + (" or fewer steps" if n_state else ""))
 
 
